@@ -121,7 +121,7 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = np.array([0.0,
     eye, target = np.asarray(eye, float), np.asarray(target, float)
     z = target - eye
     z = z / np.linalg.norm(z, axis=-1, keepdims=True)
-    x = np.cross(z, -np.broadcast_to(up, z.shape))
+    x = np.cross(z, np.broadcast_to(up, z.shape))
     x = x / np.linalg.norm(x, axis=-1, keepdims=True)
     y = np.cross(z, x)
     R = np.stack([x, y, z], axis=-2)

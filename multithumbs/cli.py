@@ -1,0 +1,160 @@
+"""The ``multithumbs`` command line. Usage errors print one line and exit with code 2."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.table import Table
+
+from multithumbs.errors import InputError
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="Multi-THuMBS: multi-person 3D human meshes across the cuts of edited video.")
+console = Console(stderr=True)
+
+SMPL_OPTION = typer.Option(None, "--smpl-model", help="SMPL model file (.npz or .pkl); default: "
+                           "$MULTITHUMBS_SMPL_MODEL, else the procedural SMPL-format body.")
+
+
+def _progress() -> Progress:
+    return Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                    TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True)
+
+
+@app.command()
+def synth(
+    out: Path = typer.Option(..., "--out", help="Output folder (created if missing)."),
+    people: int = typer.Option(3, "--people", help="Number of people."),
+    shots: int = typer.Option(2, "--shots", help="Number of shots (one camera each)."),
+    frames: int = typer.Option(120, "--frames", help="Number of frames."),
+    seed: int = typer.Option(0, "--seed", help="Seed of every random choice."),
+    cut_angle: float = typer.Option(45.0, "--cut-angle", help="Yaw between consecutive shots' cameras (degrees)."),
+    moving: bool = typer.Option(False, "--moving", help="Cameras dolly sideways during their shots."),
+    width: int = typer.Option(640, "--width", help="Image width (pixels)."),
+    height: int = typer.Option(360, "--height", help="Image height (pixels)."),
+    fps: float = typer.Option(30.0, "--fps", help="Frames per second."),
+    suite_name: Optional[str] = typer.Option(None, "--suite", help="Take the scene from this named suite."),
+    scene_name: Optional[str] = typer.Option(None, "--scene", help="Scene name within --suite."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace existing outputs in --out."),
+    smpl_model: Optional[Path] = SMPL_OPTION,
+) -> None:
+    """Synthesise a multi-shot scene: video.mp4, ground_truth.npz and contact_sheet.png."""
+    from multithumbs.body.model import load_body_model
+    from multithumbs.synth.files import prepare_output_dir, write_synthetic
+    from multithumbs.synth.scene import SceneConfig, synthesize
+    from multithumbs.synth.suite import suite_scene
+
+    if suite_name or scene_name:
+        if not (suite_name and scene_name):
+            raise InputError("--suite and --scene go together")
+        config = suite_scene(suite_name, scene_name)
+    else:
+        config = SceneConfig(num_people=people, num_shots=shots, num_frames=frames, seed=seed,
+                             cut_angle_deg=cut_angle, moving_cameras=moving, image_size=(height, width), fps=fps)
+    out_dir = prepare_output_dir(out, overwrite)
+    body = load_body_model(smpl_model)
+    with _progress() as bar:
+        task = bar.add_task("rendering", total=config.num_frames)
+        video = synthesize(config, body, progress=lambda done, total: bar.update(task, completed=done))
+    paths = write_synthetic(out_dir, video)
+    truth = video.truth
+    console.print(f"[bold]{config.name or 'scene'}[/]: {config.num_people} people, {config.num_shots} shots, "
+                  f"{config.num_frames} frames, cuts at {truth.world.cut_frames.tolist()}, "
+                  f"{int(truth.visible.sum())} visible person-frames")
+    for kind, path in paths.items():
+        console.print(f"  {kind:14s} {path}")
+
+
+@app.command("suite")
+def list_suite(name: str = typer.Argument("standard", help="Suite name."),
+               as_json: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+    """List the scenes of a named synthetic suite."""
+    from dataclasses import asdict
+
+    from multithumbs.synth.suite import suite
+
+    configs = suite(name)
+    if as_json:
+        print(json.dumps([asdict(c) for c in configs], indent=2, default=str))
+        return
+    table = Table(title=f"suite {name}")
+    for col in ("scene", "people", "shots", "frames", "cut angle", "moving", "special"):
+        table.add_column(col)
+    for c in configs:
+        special = ", ".join(filter(None, [c.only_in_one_shot and "one-shot person",
+                                          c.dressed_alike and "dressed alike", c.crossing_pair and "crossing"]))
+        table.add_row(c.name, str(c.num_people), str(c.num_shots), str(c.num_frames), f"{c.cut_angle_deg:g}",
+                      str(c.moving_cameras), special)
+    Console().print(table)
+
+
+@app.command("eval")
+def evaluate_cmd(
+    result: Path = typer.Argument(..., help="Result file (.npz); a ground-truth file is also a valid result."),
+    truth: Path = typer.Argument(..., help="Ground-truth file (.npz)."),
+    as_json: bool = typer.Option(False, "--json", help="Print all metrics as JSON."),
+    smpl_model: Optional[Path] = SMPL_OPTION,
+) -> None:
+    """Score a result against ground truth with every metric of METRICS.md."""
+    from multithumbs.body.model import load_body_model
+    from multithumbs.io import load_ground_truth, load_result
+    from multithumbs.metrics.evaluate import evaluate
+
+    predicted = load_result(result)
+    gt, _ = load_ground_truth(truth)
+    if predicted.num_frames != gt.world.num_frames:
+        raise InputError(f"{result}: {predicted.num_frames} frames, but the ground truth has {gt.world.num_frames}")
+    metrics = evaluate(predicted, gt, load_body_model(smpl_model))
+    if as_json:
+        print(json.dumps(_jsonable(metrics), indent=2, sort_keys=True))
+        return
+    table = Table(title=f"{result.name} vs {truth.name}")
+    table.add_column("metric")
+    table.add_column("value", justify="right")
+    for key, value in metrics.items():
+        if isinstance(value, (int, float)):
+            table.add_row(key, f"{value:.3f}")
+    Console().print(table)
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if hasattr(value, "tolist"):
+        return _jsonable(value.tolist())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def main() -> None:
+    """Entry point: run the app; user errors become one line on stderr and exit code 2."""
+    try:
+        app(standalone_mode=False)
+    except InputError as exc:
+        console.print(f"error: {exc}", markup=False, highlight=False)
+        sys.exit(2)
+    except (typer.Exit, SystemExit) as exc:
+        raise
+    except Exception as exc:  # click's usage errors
+        import click
+
+        if isinstance(exc, click.exceptions.ClickException):
+            console.print(f"error: {exc.format_message()}", markup=False, highlight=False)
+            sys.exit(exc.exit_code)
+        if isinstance(exc, click.exceptions.Abort):
+            sys.exit(130)
+        raise
+
+
+if __name__ == "__main__":
+    main()

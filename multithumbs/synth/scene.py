@@ -1,0 +1,451 @@
+"""The synthetic multi-shot world (DESIGN §7): a textured room, people, cameras, and the rendered video.
+
+``build_scene`` decides everything (room, people's motion and clothing, cameras, cuts) from a
+:class:`SceneConfig` and its seed; ``synthesize`` poses the bodies, renders the spliced multi-shot
+video with exact depth and instance masks, and assembles the :class:`GroundTruth`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from multithumbs.body.model import BodyModel
+from multithumbs.errors import InputError
+from multithumbs.geometry import intrinsics_from_fov, look_at, project_points, world_to_camera
+from multithumbs.synth.motion import MotionConfig, PersonMotion, motion_to_smpl, simulate_walk
+from multithumbs.synth.render import MeshInstance, Render, render_view
+from multithumbs.synth.room import Room, make_room
+from multithumbs.synth.splice import even_cuts, shot_camera_ids, splice_views
+from multithumbs.types import GroundTruth, WorldResult, pack_mask
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """A synthetic multi-shot scene. Every random choice follows from ``seed``.
+
+    Attributes:
+        num_people: people in the scene (1..8).
+        num_shots: shots in the video; shot ``k`` is filmed by camera ``k``.
+        num_frames: frames in the video.
+        seed: seed of every random choice.
+        cut_angle_deg: yaw between consecutive shots' cameras about the scene centre (degrees).
+        moving_cameras: per shot, whether its camera dollies sideways; one bool applies to all shots.
+        image_size: ``(H, W)`` in pixels.
+        fps: frames per second.
+        horizontal_fov_deg: horizontal field of view of every camera (degrees).
+        camera_distance: distance of the cameras from the scene centre (m).
+        camera_height: (min, max) height of the cameras above the floor (m).
+        dolly_speed: sideways speed of a moving camera (m/s).
+        only_in_one_shot: persons (indices) present in one shot only, the shot given: ``((person, shot),)``.
+        dressed_alike: pairs of persons wearing the same clothes.
+        crossing_pair: two persons whose paths cross at the scene centre at the first cut, or None.
+        room_size: (width, depth, height) of the room (m).
+        motion: how people move.
+        name: the scene's name in a suite, or "".
+    """
+
+    num_people: int = 3
+    num_shots: int = 2
+    num_frames: int = 120
+    seed: int = 0
+    cut_angle_deg: float = 45.0
+    moving_cameras: bool | tuple[bool, ...] = False
+    image_size: tuple[int, int] = (360, 640)
+    fps: float = 30.0
+    horizontal_fov_deg: float = 62.0
+    camera_distance: float = 3.4
+    camera_height: tuple[float, float] = (1.5, 2.1)
+    dolly_speed: float = 0.3
+    only_in_one_shot: tuple[tuple[int, int], ...] = ()
+    dressed_alike: tuple[tuple[int, int], ...] = ()
+    crossing_pair: tuple[int, int] | None = None
+    room_size: tuple[float, float, float] = (9.0, 8.0, 3.0)
+    motion: MotionConfig = field(default_factory=MotionConfig)
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.num_people <= 8:
+            raise InputError(f"people: need 1 to 8 people, got {self.num_people}")
+        if self.num_shots < 1:
+            raise InputError(f"shots: need at least one shot, got {self.num_shots}")
+        if self.num_frames < 2 * self.num_shots:
+            raise InputError(f"frames: {self.num_frames} frames cannot hold {self.num_shots} shots "
+                             f"(each shot needs at least 2 frames)")
+        if not 0 <= self.cut_angle_deg <= 180:
+            raise InputError(f"cut-angle: must be within [0, 180] degrees, got {self.cut_angle_deg}")
+        h, w = self.image_size
+        if h < 32 or w < 32:
+            raise InputError(f"image size: at least 32x32 pixels, got {h}x{w}")
+        if not self.fps > 0:
+            raise InputError(f"fps: must be positive, got {self.fps}")
+        moving = self.moving_cameras
+        if not isinstance(moving, bool) and len(moving) != self.num_shots:
+            raise InputError(f"moving_cameras: one flag per shot ({self.num_shots}), got {len(moving)}")
+        people = [p for pair in (*self.dressed_alike, *(self.crossing_pair and [self.crossing_pair] or []))
+                  for p in pair] + [p for p, _ in self.only_in_one_shot]
+        if any(not 0 <= p < self.num_people for p in people):
+            raise InputError(f"scene {self.name or 'config'}: a person index is out of range for "
+                             f"{self.num_people} people")
+        if any(not 0 <= s < self.num_shots for _, s in self.only_in_one_shot):
+            raise InputError(f"scene {self.name or 'config'}: a shot index is out of range for "
+                             f"{self.num_shots} shots")
+
+    def camera_is_moving(self, shot: int) -> bool:
+        moving = self.moving_cameras
+        return bool(moving) if isinstance(moving, bool) else bool(moving[shot])
+
+
+# Clothing regions by the SMPL joint that drives a vertex.
+_SKIN_PARTS = (12, 15, 20, 21, 22, 23)
+_TOP_PARTS = (3, 6, 9, 13, 14, 16, 17)
+_SLEEVE_PARTS = (18, 19)
+_BOTTOM_PARTS = (0, 1, 2, 4, 5)
+_SHOE_PARTS = (7, 8, 10, 11)
+_SKIN_TONES = np.array([[0.96, 0.80, 0.69], [0.87, 0.67, 0.52], [0.68, 0.48, 0.34],
+                        [0.45, 0.31, 0.22], [0.92, 0.74, 0.60]])
+_HAIR = np.array([[0.08, 0.06, 0.05], [0.35, 0.22, 0.12], [0.75, 0.6, 0.35], [0.2, 0.2, 0.2]])
+_GARMENTS = np.array([  # saturated and neutral clothing colours, distinct in hue
+    [0.80, 0.12, 0.12], [0.10, 0.35, 0.80], [0.12, 0.62, 0.22], [0.95, 0.75, 0.10], [0.55, 0.20, 0.65],
+    [0.95, 0.45, 0.10], [0.10, 0.65, 0.70], [0.90, 0.90, 0.88], [0.15, 0.15, 0.18], [0.60, 0.40, 0.25],
+    [0.95, 0.55, 0.70], [0.30, 0.30, 0.55],
+])
+
+
+@dataclass(frozen=True)
+class Clothing:
+    """Colours of one person (RGB in [0, 1]).
+
+    Attributes:
+        skin, hair, top, sleeves, bottom, shoes: ``(3,)`` each.
+    """
+
+    skin: np.ndarray
+    hair: np.ndarray
+    top: np.ndarray
+    sleeves: np.ndarray
+    bottom: np.ndarray
+    shoes: np.ndarray
+
+    def vertex_colors(self, part_labels: np.ndarray, rest_vertices: np.ndarray, head_top: float) -> np.ndarray:
+        """``(V, 3)`` colours from each vertex's part (and hair on the top of the head)."""
+        colors = np.tile(self.skin, (part_labels.shape[0], 1))
+        for parts, color in ((_TOP_PARTS, self.top), (_SLEEVE_PARTS, self.sleeves),
+                             (_BOTTOM_PARTS, self.bottom), (_SHOE_PARTS, self.shoes)):
+            colors[np.isin(part_labels, parts)] = color
+        head = part_labels == 15
+        hair = head & (rest_vertices[:, 1] > head_top - 0.09) | head & (rest_vertices[:, 2] < rest_vertices[head, 2].mean() - 0.04)
+        colors[hair] = self.hair
+        return colors
+
+
+def _draw_clothing(rng: np.random.Generator, num_people: int, alike: tuple[tuple[int, int], ...]) -> list[Clothing]:
+    tops = rng.permutation(len(_GARMENTS))
+    bottoms = rng.permutation(len(_GARMENTS))
+    out = []
+    for p in range(num_people):
+        top = _GARMENTS[tops[p % len(tops)]]
+        bottom = _GARMENTS[bottoms[(p + 3) % len(bottoms)]] * 0.7  # trousers a bit darker
+        sleeves = top if rng.random() < 0.6 else _SKIN_TONES[rng.integers(len(_SKIN_TONES))]
+        out.append(Clothing(_SKIN_TONES[rng.integers(len(_SKIN_TONES))], _HAIR[rng.integers(len(_HAIR))],
+                            top, sleeves, bottom, np.array([0.12, 0.1, 0.09]) + 0.3 * rng.random() * np.ones(3)))
+    for a, b in alike:  # the second dresses exactly like the first, down to skin and hair
+        out[b] = out[a]
+    return out
+
+
+@dataclass(frozen=True)
+class CameraRig:
+    """All cameras over all frames (before the splice).
+
+    Attributes:
+        K: ``(C, 3, 3)`` intrinsics.
+        R: ``(C, T, 3, 3)`` world-to-camera rotations.
+        t: ``(C, T, 3)`` world-to-camera translations.
+    """
+
+    K: np.ndarray
+    R: np.ndarray
+    t: np.ndarray
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Everything decided about a scene before posing and rendering.
+
+    Attributes:
+        config: the scene's config.
+        room: the textured room.
+        motions: one motion per person.
+        presence: ``(P, T)`` bool, the person is in the room.
+        betas: ``(P, 10)`` body shapes.
+        clothing: one per person.
+        cameras: all cameras over all frames.
+        cut_frames: ``(S-1,)`` cuts.
+        camera_ids: ``(T,)`` source camera of each frame.
+    """
+
+    config: SceneConfig
+    room: Room
+    motions: tuple[PersonMotion, ...]
+    presence: np.ndarray
+    betas: np.ndarray
+    clothing: tuple[Clothing, ...]
+    cameras: CameraRig
+    cut_frames: np.ndarray
+    camera_ids: np.ndarray
+
+
+def _make_cameras(config: SceneConfig, rng: np.random.Generator) -> CameraRig:
+    h, w = config.image_size
+    K = intrinsics_from_fov(w, h, config.horizontal_fov_deg)
+    t_axis = np.arange(config.num_frames) / config.fps
+    base_azimuth = rng.uniform(0, 2 * np.pi)
+    direction = rng.choice([-1.0, 1.0])  # cut to the left or to the right
+    Rs, ts = [], []
+    for k in range(config.num_shots):
+        az = base_azimuth + direction * np.deg2rad(config.cut_angle_deg) * k
+        height = rng.uniform(*config.camera_height)
+        radial = np.array([np.cos(az), np.sin(az)])
+        tangent = np.array([-radial[1], radial[0]])
+        eye_xy = config.camera_distance * radial[None] + 0 * t_axis[:, None]
+        target_xy = 0.3 * rng.uniform(-1, 1, 2)[None] + 0 * t_axis[:, None]
+        if config.camera_is_moving(k):
+            # Dolly sideways through the shot, centred on the shot's middle; the aim follows half-way.
+            s0, s1 = np.nonzero(config_shot_mask(config, k))[0][[0, -1]]
+            mid = 0.5 * (s0 + s1) / config.fps
+            offset = (t_axis - mid) * config.dolly_speed * rng.choice([-1.0, 1.0])
+            eye_xy = eye_xy + offset[:, None] * tangent
+            target_xy = target_xy + 0.5 * offset[:, None] * tangent
+        eye = np.concatenate([eye_xy, np.full((config.num_frames, 1), height)], axis=1)
+        target = np.concatenate([target_xy, np.full((config.num_frames, 1), 0.9)], axis=1)
+        R, t = look_at(eye, target)
+        Rs.append(R)
+        ts.append(t)
+    return CameraRig(np.repeat(K[None], config.num_shots, 0), np.stack(Rs), np.stack(ts))
+
+
+def config_shot_mask(config: SceneConfig, shot: int) -> np.ndarray:
+    """``(T,)`` bool, frames of ``shot`` under the config's cuts."""
+    cuts = scene_cuts(config)
+    edges = [0, *cuts.tolist(), config.num_frames]
+    mask = np.zeros(config.num_frames, bool)
+    mask[edges[shot]:edges[shot + 1]] = True
+    return mask
+
+
+def scene_cuts(config: SceneConfig) -> np.ndarray:
+    """The cut frames of a config (deterministic from its seed)."""
+    return even_cuts(config.num_frames, config.num_shots, jitter=0.15,
+                     rng=np.random.default_rng([config.seed, 1]), min_shot_length=2)
+
+
+def build_scene(config: SceneConfig) -> Scene:
+    """Decide room, people, motion, clothing, cameras and cuts of a scene from its config."""
+    rng = np.random.default_rng([config.seed, 0])
+    cuts = scene_cuts(config)
+    cameras = _make_cameras(config, rng)
+    centres = -np.einsum("ctji,ctj->cti", cameras.R, cameras.t)
+    room = make_room(config.seed, *config.room_size)
+    room = _clear_around(room, centres.reshape(-1, 3))
+    region = np.asarray(config.motion.region)
+
+    motions, presence = [], np.ones((config.num_people, config.num_frames), bool)
+    crossing = config.crossing_pair
+    for p in range(config.num_people):
+        if crossing is not None and p in crossing:
+            motions.append(_crossing_motion(config, cuts, crossing.index(p), rng))
+            continue
+        start = rng.uniform(-1, 1, 2) * region
+        waypoints = [rng.uniform(-1, 1, 2) * region for _ in range(3)]
+        motions.append(simulate_walk(start, waypoints, config.num_frames, config.fps, rng, config.motion))
+    edges = [0, *cuts.tolist(), config.num_frames]
+    for person, shot in config.only_in_one_shot:
+        presence[person] = False
+        presence[person, edges[shot]:edges[shot + 1]] = True
+    betas = np.clip(rng.normal(0, 0.8, (config.num_people, 10)), -2, 2)
+    betas[:, 2:] *= 0.5
+    clothing = _draw_clothing(rng, config.num_people, config.dressed_alike)
+    for a, b in config.dressed_alike:  # dressed alike and built alike: only place and pose tell them apart
+        betas[b] = betas[a]
+    camera_ids = shot_camera_ids(config.num_frames, cuts, list(range(config.num_shots)))
+    return Scene(config, room, tuple(motions), presence, betas, tuple(clothing), cameras, cuts, camera_ids)
+
+
+def _crossing_motion(config: SceneConfig, cuts: np.ndarray, which: int, rng: np.random.Generator) -> PersonMotion:
+    """Two people walking towards each other on parallel lines 0.5 m apart, passing at the first cut."""
+    t_meet = (cuts[0] if cuts.size else config.num_frames // 2) / config.fps
+    speed = float(np.clip(1.8 / max(t_meet, 1e-3), 0.6, 1.3))
+    angle = np.deg2rad(20.0) + rng.uniform(-0.2, 0.2) * 0  # one shared line direction for the pair
+    along = np.array([np.cos(angle), np.sin(angle)])
+    across = np.array([-along[1], along[0]])
+    sign = 1.0 if which == 0 else -1.0
+    start = -sign * speed * t_meet * along + sign * 0.25 * across
+    end = sign * 3.0 * along + sign * 0.25 * across
+    return simulate_walk(start, [end], config.num_frames, config.fps, rng, config.motion, speed=speed,
+                         allow_pauses=False)
+
+
+def _clear_around(room: Room, camera_centres: np.ndarray, clearance: float = 0.6) -> Room:
+    """Drop furniture that a camera would sit in or right behind."""
+    keep = []
+    for box in room.boxes:
+        lo = np.asarray(box.centre) - np.asarray(box.size) / 2 - clearance
+        hi = np.asarray(box.centre) + np.asarray(box.size) / 2 + clearance
+        inside = np.all((camera_centres[:, :2] >= lo[:2]) & (camera_centres[:, :2] <= hi[:2]), axis=1)
+        if not inside.any():
+            keep.append(box)
+    return dataclasses.replace(room, boxes=tuple(keep))
+
+
+@dataclass(frozen=True)
+class SyntheticVideo:
+    """A rendered scene.
+
+    Attributes:
+        scene: what was decided before rendering.
+        truth: the ground truth.
+        frames: ``(T, H, W, 3)`` uint8 RGB.
+        instance: ``(T, H, W)`` int8, person index per pixel, -1 for the room.
+        boundary_depth: ``(C, 2, H, W)`` float32 z-depth at the boundary frames ``(t_b - 1, t_b)`` of each cut.
+        vertices: ``(P, T, V, 3)`` float32 world vertices of every person.
+        faces: ``(F, 3)`` mesh faces.
+    """
+
+    scene: Scene
+    truth: GroundTruth
+    frames: np.ndarray
+    instance: np.ndarray
+    boundary_depth: np.ndarray
+    vertices: np.ndarray
+    faces: np.ndarray
+
+    def person_masks(self, person: int) -> np.ndarray:
+        """``(T, H, ceil(W/8))`` bit-packed mask of one person over the video."""
+        return pack_mask(self.instance == person)
+
+
+def pose_people(scene: Scene, body: BodyModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """SMPL parameters and posed meshes of everyone, with feet on the floor.
+
+    Returns:
+        global_orient ``(P, T, 3)``, body_pose ``(P, T, 23, 3)``, transl ``(P, T, 3)``,
+        vertices ``(P, T, V, 3)``, joints ``(P, T, 24, 3)``, all world frame.
+    """
+    orients, poses = zip(*(motion_to_smpl(m) for m in scene.motions))
+    global_orient, body_pose = np.stack(orients), np.stack(poses)
+    p, t = global_orient.shape[:2]
+    betas = np.broadcast_to(scene.betas[:, None], (p, t, 10))
+    with torch.no_grad():
+        out = body.forward(global_orient, body_pose, betas, None)
+    verts, joints = out.vertices.double().numpy(), out.joints.double().numpy()
+    # Stand on the floor: the lowest vertex of every frame touches z = 0; pelvis over its floor position.
+    floor_xy = np.stack([m.position for m in scene.motions])
+    offset = np.concatenate([floor_xy - joints[:, :, 0, :2], -verts[..., 2].min(axis=2, keepdims=True)], axis=2)
+    transl = offset
+    return (global_orient, body_pose, transl, (verts + transl[:, :, None]).astype(np.float32),
+            joints + transl[:, :, None])
+
+
+def synthesize(config: SceneConfig, body: BodyModel, progress=None) -> SyntheticVideo:
+    """Build, pose, render and splice a scene; assemble its ground truth.
+
+    Args:
+        progress: optional callable ``progress(done, total)`` called after each rendered frame.
+    """
+    scene = build_scene(config)
+    global_orient, body_pose, transl, vertices, joints = pose_people(scene, body)
+    h, w = config.image_size
+    K = splice_views(np.repeat(scene.cameras.K[:, None], config.num_frames, 1), scene.camera_ids)
+    R = splice_views(scene.cameras.R, scene.camera_ids)
+    t = splice_views(scene.cameras.t, scene.camera_ids)
+    p_count, t_count = scene.presence.shape
+    with torch.no_grad():
+        rest = body.forward(np.zeros(3), np.zeros((23, 3)), np.zeros(10)).vertices.double().numpy()
+    colors = [c.vertex_colors(body.part_labels, rest, float(rest[:, 1].max())) for c in scene.clothing]
+
+    frames = np.zeros((t_count, h, w, 3), np.uint8)
+    instance = np.full((t_count, h, w), -1, np.int8)
+    boundary = {int(f) for c in scene.cut_frames for f in (c - 1, c)}
+    depth_at: dict[int, np.ndarray] = {}
+    for f in range(t_count):
+        people = [q for q in range(p_count) if scene.presence[q, f]]
+        meshes = [MeshInstance(vertices[q, f], body.faces, colors[q]) for q in people]
+        render: Render = render_view(scene.room, meshes, K[f], R[f], t[f], (h, w))
+        frames[f] = render.rgb
+        ids = np.asarray(people + [-1], np.int8)  # render indices -> person indices; -1 stays room
+        instance[f] = ids[render.instance]
+        if f in boundary:
+            depth_at[f] = render.depth.astype(np.float32)
+        if progress is not None:
+            progress(f + 1, t_count)
+    boundary_depth = np.stack([np.stack([depth_at[int(c) - 1], depth_at[int(c)]]) for c in scene.cut_frames]) \
+        if scene.cut_frames.size else np.zeros((0, 2, h, w), np.float32)
+
+    keypoints, bboxes, visible = _observe(joints, scene.presence, instance, K, R, t)
+    id_map = np.array([[s, q, q] for s in range(config.num_shots) for q in range(p_count)
+                       if scene.presence[q][scene.camera_ids == s].any()], dtype=np.int64).reshape(-1, 3)
+    world = WorldResult(
+        person_ids=np.arange(p_count), global_orient=global_orient, body_pose=body_pose, betas=scene.betas,
+        transl=transl, valid=scene.presence.copy(), K=K, R=R, t=t, cut_frames=scene.cut_frames,
+        fps=config.fps, image_size=(h, w), id_map=id_map, keypoints2d=keypoints)
+    metadata = {"kind": "synthetic", "name": config.name, "seed": config.seed, "body_model": body.source,
+                "config": _config_json(config)}
+    truth = GroundTruth(world, bboxes, visible, scene.camera_ids, metadata)
+    return SyntheticVideo(scene, truth, frames, instance, boundary_depth, vertices, body.faces)
+
+
+def _observe(joints: np.ndarray, presence: np.ndarray, instance: np.ndarray, K, R, t,
+             min_pixels: int = 30) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """True 2D joints with visibility, boxes of the visible body and visibility per person and frame."""
+    p_count, t_count = presence.shape
+    h, w = instance.shape[1:]
+    uv = project_points(joints, K[None], R[None], t[None])  # (P, T, 24, 2)
+    z = world_to_camera(joints, R[None], t[None])[..., 2]
+    bboxes = np.zeros((p_count, t_count, 4))
+    visible = np.zeros((p_count, t_count), bool)
+    conf = np.zeros((p_count, t_count, 24))
+    for q in range(p_count):
+        mask = instance == q
+        counts = mask.reshape(t_count, -1).sum(1)
+        visible[q] = presence[q] & (counts >= min_pixels)
+        for f in np.nonzero(visible[q])[0]:
+            ys, xs = np.nonzero(mask[f])
+            bboxes[q, f] = xs.min(), ys.min(), xs.max() + 1, ys.max() + 1
+        ui, vi = np.round(uv[q, ..., 0]).astype(int), np.round(uv[q, ..., 1]).astype(int)
+        inside = (ui >= 0) & (ui < w) & (vi >= 0) & (vi < h) & (z[q] > 0.05) & presence[q][:, None]
+        # A joint is visible when the pixel it projects to shows this person, or nothing in front of it:
+        # joints sit inside the body, so look at a small window around the projection.
+        seen = np.zeros_like(inside)
+        fi, ji = np.nonzero(inside)
+        for dy in (-2, 0, 2):
+            for dx in (-2, 0, 2):
+                yy, xx = np.clip(vi[fi, ji] + dy, 0, h - 1), np.clip(ui[fi, ji] + dx, 0, w - 1)
+                seen[fi, ji] |= instance[fi, yy, xx] == q
+        conf[q] = seen.astype(float)
+    keypoints = np.concatenate([uv, conf[..., None]], axis=-1)
+    return keypoints, bboxes, visible
+
+
+def _config_json(config: SceneConfig) -> dict:
+    out = dataclasses.asdict(config)
+    out["motion"] = dataclasses.asdict(config.motion)
+    return out
+
+
+def config_from_json(data: dict) -> SceneConfig:
+    """Inverse of the ``config`` entry of a synthetic ground truth's metadata."""
+    data = dict(data)
+    data["motion"] = MotionConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in data["motion"].items()})
+    for key in ("image_size", "camera_height", "room_size"):
+        data[key] = tuple(data[key])
+    data["only_in_one_shot"] = tuple(tuple(x) for x in data["only_in_one_shot"])
+    data["dressed_alike"] = tuple(tuple(x) for x in data["dressed_alike"])
+    if data["crossing_pair"] is not None:
+        data["crossing_pair"] = tuple(data["crossing_pair"])
+    if isinstance(data["moving_cameras"], list):
+        data["moving_cameras"] = tuple(data["moving_cameras"])
+    return SceneConfig(**data)
