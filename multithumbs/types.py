@@ -224,6 +224,8 @@ class CameraTrajectory(_Checked):
         K: ``(3, 3)`` intrinsics.
         R: ``(T, 3, 3)`` world-to-camera rotations.
         t: ``(T, 3)`` world-to-camera translations.
+        points: ``(N, 3)`` sparse scene points of the tracking map in the same frame and scale, or None;
+            they tie the trajectory's unknown scale to a shared space's depth.
         source: backend that produced it (``"pycolmap"``, ``"static"``, ``"simulated"``...).
     """
 
@@ -232,9 +234,10 @@ class CameraTrajectory(_Checked):
     K: np.ndarray
     R: np.ndarray
     t: np.ndarray
+    points: np.ndarray | None = None
     source: str = "unknown"
 
-    SPEC = {"K": ((3, 3), "f"), "R": (("T", 3, 3), "f"), "t": (("T", 3), "f")}
+    SPEC = {"K": ((3, 3), "f"), "R": (("T", 3, 3), "f"), "t": (("T", 3), "f"), "points": (("N", 3), "f")}
 
     @property
     def num_frames(self) -> int:

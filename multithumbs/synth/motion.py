@@ -108,18 +108,16 @@ def simulate_walk(start: np.ndarray, waypoints: list[np.ndarray], num_frames: in
             gesture_time += dt
             amount = max(0.0, amount - 4 * dt)  # settle the legs within a quarter second
             if pause_left <= 0:
-                gesture, target = 0, next_target()
+                gesture = 0
         else:
-            to_target = target - pos
-            dist = float(np.linalg.norm(to_target))
-            if dist < 0.15:
+            if np.linalg.norm(target - pos) < 0.15:
                 if allow_pauses and rng.random() < config.stand_probability:
                     pause_left = rng.uniform(*config.stand_seconds)
                     gesture = int(rng.integers(1, 3)) if rng.random() < config.gesture_probability else 0
                     gesture_time = 0.0
-                else:
-                    target = next_target()
-            else:
+                target = next_target()
+            if pause_left <= 0:
+                to_target = target - pos
                 desired = np.arctan2(to_target[1], to_target[0])
                 heading += float(np.clip(_wrap(desired - heading), -config.turn_rate * dt, config.turn_rate * dt))
                 # Slow down while turning sharply, as people do.
@@ -136,7 +134,7 @@ def simulate_walk(start: np.ndarray, waypoints: list[np.ndarray], num_frames: in
 
 def _rot(axis: str, angle: np.ndarray) -> np.ndarray:
     """``(T, 3, 3)`` rotations about a body axis."""
-    return Rotation.from_euler(axis, angle).as_matrix()
+    return Rotation.from_euler(axis, np.asarray(angle, float)[..., None]).as_matrix()
 
 
 def motion_to_smpl(motion: PersonMotion) -> tuple[np.ndarray, np.ndarray]:
