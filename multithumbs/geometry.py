@@ -194,3 +194,16 @@ def transform_cameras(sim: Similarity, R: torch.Tensor, t: torch.Tensor) -> tupl
     R_new = R @ sim.rotation.transpose(-1, -2)
     t_new = sim.scale[..., None] * t - (R_new @ sim.translation[..., None])[..., 0]
     return R_new, t_new
+
+
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals of meshes ``(..., V, 3)`` with faces ``(F, 3)`` (counter-clockwise out)."""
+    flat = np.asarray(vertices, dtype=np.float64).reshape(-1, *np.shape(vertices)[-2:])
+    normals = np.zeros_like(flat)
+    for mesh, out in zip(flat, normals):
+        tri = mesh[faces]
+        face_normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        for corner in range(3):
+            np.add.at(out, faces[:, corner], face_normals)
+    normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-12)
+    return normals.reshape(np.shape(vertices))

@@ -1,0 +1,436 @@
+"""The plain-Python reference chain: per-shot inputs to one :class:`WorldResult` (paper §3, DESIGN §1).
+
+``run_video`` runs every stage in order; each stage is also a function of its own so that the Prefect
+tasks (``tasks/``) can cache them one by one:
+
+1. :func:`boundary_people` — the people of the two frames around each cut, posed once;
+2. :func:`multithumbs.method.align.align_boundary` — scale and three-stage alignment per cut;
+3. :func:`propagate` — every camera and every track's root into one world frame, cut by cut;
+4. :func:`reidentify` — global identities across cuts;
+5. :func:`assemble` and :func:`multithumbs.method.post.post_process` — world tracks and their refinement;
+6. :func:`to_world_result`.
+
+Variants (paper Table 3 and baselines): ``full``; ablations ``no_cam`` (no camera refinement in stage 3),
+``no_post``, ``no_stage`` (every parameter jointly from the estimator's placement), ``no_align``; baselines
+``independent_shots`` (each shot in its own camera-tracking frame, identities linked the way single-shot
+trackers such as PHALP link them across a cut: appearance and pose, no location), ``appearance_only`` and
+``distance_only`` re-identification.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+import torch
+
+from multithumbs.appearance import mean_descriptor
+from multithumbs.errors import InputError
+from multithumbs.geometry import Similarity, axis_angle_to_matrix, matrix_to_axis_angle
+from multithumbs.method.align import AlignConfig, AlignedBoundary, BoundaryPeople, align_boundary
+from multithumbs.method.post import PostConfig, PostInput, post_process
+from multithumbs.method.propagate import (apply_corrections, camera_to_world_roots, place_trajectory,
+                                          root_correction, similarity_from_camera_pair, trajectory_scale)
+from multithumbs.method.reid import Candidates, Matching, ReidConfig, match_people
+from multithumbs.types import CameraTrajectory, PersonTracks, SharedSpace, Shots, WorldResult
+
+VARIANTS = ("full", "no_cam", "no_post", "no_stage", "no_align", "independent_shots", "appearance_only",
+            "distance_only")
+
+
+@dataclass(frozen=True)
+class MethodConfig:
+    """The whole method's settings (paper defaults).
+
+    Attributes:
+        align: scale and alignment (§3.1–3.2).
+        reid: re-identification (§3.4).
+        post: post-processing (§3.5).
+        skip_align: the ``no_align`` ablation.
+        skip_post: the ``no_post`` ablation.
+        independent_shots: the single-shot baseline (no shared space; cross-cut links by appearance and pose).
+        appearance_window: frames next to a cut whose appearance descriptors are averaged for re-ID.
+        variant: name of the variant this config implements (for reports).
+    """
+
+    align: AlignConfig = field(default_factory=AlignConfig)
+    reid: ReidConfig = field(default_factory=ReidConfig)
+    post: PostConfig = field(default_factory=PostConfig)
+    skip_align: bool = False
+    skip_post: bool = False
+    independent_shots: bool = False
+    appearance_window: int = 15
+    variant: str = "full"
+
+
+def variant_config(variant: str, base: MethodConfig = MethodConfig()) -> MethodConfig:
+    """The config of a named variant, derived from ``base``."""
+    if variant not in VARIANTS:
+        raise InputError(f"variant {variant!r}: unknown; choose from {', '.join(VARIANTS)}")
+    rep = dataclasses.replace
+    no_geo = rep(base.reid, w_geo=0.0, max_distance=float("inf"))
+    changes = {
+        "full": {},
+        "no_cam": {"align": rep(base.align, refine_cameras=False)},
+        "no_post": {"skip_post": True},
+        "no_stage": {"align": rep(base.align, staged=False)},
+        "no_align": {"skip_align": True},
+        "independent_shots": {"independent_shots": True, "reid": rep(no_geo, w_app=1.0, w_pose=1.0)},
+        "appearance_only": {"reid": rep(no_geo, w_app=1.0, w_pose=0.0)},
+        "distance_only": {"reid": rep(base.reid, w_app=0.0, w_pose=0.0)},
+    }[variant]
+    return rep(base, variant=variant, **changes)
+
+
+# ----------------------------------------------------------------------------------------------------
+# 1. Boundary people
+
+
+def _pelvis_rest(body, betas: np.ndarray) -> np.ndarray:
+    """``(..., 3)`` rest pelvis joint (SMPL's rotation centre) of shapes ``(..., 10)``."""
+    with torch.no_grad():
+        return body.rest_joints(betas).double().numpy()[..., 0, :]
+
+
+def boundary_people(before: PersonTracks, after: PersonTracks, body) -> BoundaryPeople:
+    """The people valid at the last frame of ``before`` and the first frame of ``after``, posed once."""
+    sides = [(before, before.num_frames - 1), (after, 0)]
+    present_idx = [np.nonzero(tr.valid[:, f])[0] for tr, f in sides]
+    p_max = max(1, max(len(ix) for ix in present_idx))
+    h, w = before.image_size
+    v_count = body.num_vertices
+    out = {
+        "present": np.zeros((2, p_max), bool), "track_index": np.full((2, p_max), -1),
+        "local_vertices": np.zeros((2, p_max, v_count, 3)), "local_joints": np.zeros((2, p_max, 24, 3)),
+        "orient_cam": np.zeros((2, p_max, 3)), "pelvis_cam": np.zeros((2, p_max, 3)),
+        "keypoints": np.zeros((2, p_max, 24, 3)), "masks": np.zeros((2, p_max, h, w), bool),
+    }
+    for k, ((tr, f), idx) in enumerate(zip(sides, present_idx)):
+        if not len(idx):
+            continue
+        with torch.no_grad():
+            posed = body.forward(np.zeros((len(idx), 3)), tr.body_pose[idx, f], tr.betas[idx])
+        verts, joints = posed.vertices.double().numpy(), posed.joints.double().numpy()
+        n = len(idx)
+        out["present"][k, :n] = True
+        out["track_index"][k, :n] = idx
+        out["local_vertices"][k, :n] = verts - joints[:, :1]
+        out["local_joints"][k, :n] = joints - joints[:, :1]
+        out["orient_cam"][k, :n] = tr.global_orient[idx, f]
+        out["pelvis_cam"][k, :n] = tr.transl[idx, f] + joints[:, 0]
+        kp = tr.keypoints2d[idx, f]
+        out["keypoints"][k, :n, :, :] = kp[:, :24] if kp.shape[1] >= 24 else 0.0
+        for j, i in enumerate(idx):
+            out["masks"][k, j] = tr.mask(i, f)
+    return BoundaryPeople(faces=body.faces, **out)
+
+
+# ----------------------------------------------------------------------------------------------------
+# 3. Propagation
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Every shot's cameras and tracks in one world frame.
+
+    Attributes:
+        R: ``(T, 3, 3)``; t: ``(T, 3)`` world cameras of all frames; K: ``(T, 3, 3)``.
+        orient: per shot ``(P_s, T_s, 3)`` world root orientations.
+        transl: per shot ``(P_s, T_s, 3)`` world SMPL translations.
+        pelvis: per shot ``(P_s, T_s, 3)`` world pelvis positions.
+        trajectory_scales: ``(S,)`` metric scale found for each shot's tracking (nan: none found, 1 used).
+        space_to_world: per cut ``(4, 4)`` similarity matrix from the cut's metric shared space to the world.
+    """
+
+    R: np.ndarray
+    t: np.ndarray
+    K: np.ndarray
+    orient: tuple[np.ndarray, ...]
+    transl: tuple[np.ndarray, ...]
+    pelvis: tuple[np.ndarray, ...]
+    trajectory_scales: np.ndarray
+    space_to_world: np.ndarray
+
+
+def _sim_matrix(sim: Similarity) -> np.ndarray:
+    s, R, t = sim.numpy()
+    m = np.eye(4)
+    m[:3, :3], m[:3, 3] = float(s) * R, t
+    return m
+
+
+def _apply_matrix(m: np.ndarray, points: np.ndarray) -> np.ndarray:
+    return points @ m[:3, :3].T + m[:3, 3]
+
+
+def propagate(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequence[CameraTrajectory],
+              aligned: Sequence[AlignedBoundary], body, independent: bool = False) -> Placement:
+    """Cameras and people of every shot in the world frame (the first cut's metric shared space)."""
+    edges = [r[0] for r in shots.ranges] + [shots.num_frames]
+    n_shots = shots.num_shots
+    T = shots.num_frames
+    R_all, t_all, K_all = np.zeros((T, 3, 3)), np.zeros((T, 3)), np.zeros((T, 3, 3))
+    space_to_world = np.tile(np.eye(4), (len(aligned), 1, 1))
+    scales = np.full(n_shots, np.nan)
+    shot_R, shot_t = [], []
+    for k in range(n_shots):
+        traj = trajectories[k]
+        a, b = edges[k], edges[k + 1]
+        if independent:
+            R_k, t_k = traj.R.astype(np.float64), traj.t.astype(np.float64)
+        else:
+            if k == 0:
+                cut, side, anchor = aligned[0], 0, b - a - 1
+                to_world = np.eye(4)
+            else:
+                cut, side, anchor = aligned[k - 1], 1, 0
+                to_world = space_to_world[k - 1]
+            R_anchor, t_anchor = _camera_in_world(cut.R[side], cut.t[side], to_world)
+            maps = _map_in_world(cut.point_map[side], cut.point_valid[side], to_world)
+            scales[k] = trajectory_scale(traj, anchor, traj.K, R_anchor, t_anchor, maps, cut.point_valid[side])
+            _, R_k, t_k = place_trajectory(traj, anchor, R_anchor, t_anchor, scales[k])
+            if k < len(aligned) and k > 0:
+                # Place cut k's space in the world by the camera of frame t_k - 1 as this shot propagated it.
+                sim = similarity_from_camera_pair(aligned[k].R[0], aligned[k].t[0], R_k[-1], t_k[-1])
+                space_to_world[k] = _sim_matrix(sim)
+        R_all[a:b], t_all[a:b], K_all[a:b] = R_k, t_k, traj.K
+        shot_R.append(R_k)
+        shot_t.append(t_k)
+
+    orients, transls, pelvises = [], [], []
+    for k in range(n_shots):
+        tr = tracks[k]
+        pelvis_rest = _pelvis_rest(body, tr.betas)                                  # (P, 3)
+        pelvis_cam = tr.transl + pelvis_rest[:, None]
+        corrections = {i: [] for i in range(tr.num_people)}
+        if not independent:
+            for c, side, frame in ((k - 1, 1, 0), (k, 0, tr.num_frames - 1)):
+                if not 0 <= c < len(aligned):
+                    continue
+                cut = aligned[c]
+                for j in np.nonzero(cut.present[side])[0]:
+                    i = int(cut.track_index[side, j])
+                    m = space_to_world[c]
+                    rot = m[:3, :3] / np.cbrt(np.linalg.det(m[:3, :3]))
+                    orient_w = matrix_to_axis_angle(rot @ axis_angle_to_matrix(cut.orient[side, j]))
+                    pelvis_w = _apply_matrix(m, cut.pelvis[side, j])
+                    corrections[i].append(root_correction(frame, tr.global_orient[i, frame], pelvis_cam[i, frame],
+                                                          orient_w, pelvis_w, shot_R[k][frame], shot_t[k][frame]))
+        known = [c.depth_scale for cs in corrections.values() for c in cs]
+        default_scale = float(np.median(known)) if known else 1.0
+        orient_k = np.zeros_like(tr.global_orient)
+        pelvis_k = np.zeros_like(pelvis_cam)
+        for i in range(tr.num_people):
+            o_c, p_c = apply_corrections(tr.global_orient[i], pelvis_cam[i], corrections[i], default_scale)
+            orient_k[i], pelvis_k[i] = camera_to_world_roots(o_c, p_c, shot_R[k], shot_t[k])
+        orients.append(orient_k)
+        pelvises.append(pelvis_k)
+        transls.append(pelvis_k - pelvis_rest[:, None])
+    return Placement(R_all, t_all, K_all, tuple(orients), tuple(transls), tuple(pelvises), scales, space_to_world)
+
+
+def _camera_in_world(R: np.ndarray, t: np.ndarray, space_to_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A camera of a shared space re-expressed in the world (the space-to-world map is SE(3))."""
+    rot = space_to_world[:3, :3]
+    R_w = R @ rot.T
+    return R_w, t - R_w @ space_to_world[:3, 3]
+
+
+def _map_in_world(point_map: np.ndarray, valid: np.ndarray, space_to_world: np.ndarray) -> np.ndarray:
+    return np.where(valid[..., None], _apply_matrix(space_to_world, point_map), 0.0)
+
+
+# ----------------------------------------------------------------------------------------------------
+# 4. Re-identification
+
+
+@dataclass(frozen=True)
+class Identities:
+    """Global identities.
+
+    Attributes:
+        global_ids: per shot ``(P_s,)`` int global id of every track.
+        matchings: per cut, the re-ID outcome (before side: candidates listed in ``before_ids``).
+        before_ids: per cut ``(N,)`` global ids of the candidates before the cut.
+        matched_at_cut: ``(G, C)`` bool, person matched across cut ``c``.
+    """
+
+    global_ids: tuple[np.ndarray, ...]
+    matchings: tuple[Matching, ...]
+    before_ids: tuple[np.ndarray, ...]
+    matched_at_cut: np.ndarray
+
+    @property
+    def num_people(self) -> int:
+        return int(max((g.max() + 1 for g in self.global_ids if len(g)), default=0))
+
+
+def _candidate(tr: PersonTracks, placement_pelvis: np.ndarray, i: int, frame: int, window: np.ndarray,
+               min_conf: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    appearance = mean_descriptor(tr.appearance[i, window], tr.appearance_valid[i, window])
+    visible = tr.keypoints2d[i, frame, 1:24, 2] > min_conf if tr.keypoints2d.shape[2] >= 24 else np.ones(23, bool)
+    return placement_pelvis[i, frame], appearance, tr.body_pose[i, frame], visible
+
+
+def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: ReidConfig,
+               appearance_window: int = 15) -> Identities:
+    """Assign global ids cut by cut; people absent on one side keep their ids for later shots."""
+    n_shots = len(tracks)
+    global_ids = [np.full(tr.num_people, -1) for tr in tracks]
+    global_ids[0] = np.arange(tracks[0].num_people)
+    next_id = tracks[0].num_people
+    last_state: dict[int, tuple] = {}  # gid -> candidate tuple at its last appearance
+    matchings, before_ids = [], []
+    matched = []
+    for k in range(n_shots - 1):
+        tr, nxt = tracks[k], tracks[k + 1]
+        for i in range(tr.num_people):
+            frames = np.nonzero(tr.valid[i])[0]
+            if len(frames):
+                last = frames[-1]
+                last_state[int(global_ids[k][i])] = _candidate(
+                    tr, placement.pelvis[k], i, last, frames[-appearance_window:], config.keypoint_confidence)
+        before = sorted(last_state)
+        after = []
+        for i in range(nxt.num_people):
+            frames = np.nonzero(nxt.valid[i])[0]
+            after.append(_candidate(nxt, placement.pelvis[k + 1], i, frames[0], frames[:appearance_window],
+                                    config.keypoint_confidence) if len(frames) else None)
+        stack = lambda rows, j: np.stack([r[j] for r in rows]) if rows else np.zeros((0,))
+        rows_b = [last_state[g] for g in before]
+        rows_a = [r for r in after if r is not None]
+        idx_a = [i for i, r in enumerate(after) if r is not None]
+        if rows_b and rows_a:
+            cand_b = Candidates(*(stack(rows_b, j) for j in range(4)))
+            cand_a = Candidates(*(stack(rows_a, j) for j in range(4)))
+            matching = match_people(cand_b, cand_a, config)
+        else:
+            empty = np.zeros((len(rows_b), len(rows_a)))
+            matching = Matching(np.zeros((0, 2), np.int64), empty, empty, empty, empty)
+        pairs_now = set()
+        for bi, ai in matching.pairs:
+            global_ids[k + 1][idx_a[ai]] = before[bi]
+            pairs_now.add(before[bi])
+        for i in range(nxt.num_people):
+            if global_ids[k + 1][i] < 0:
+                global_ids[k + 1][i] = next_id
+                next_id += 1
+        matchings.append(matching)
+        before_ids.append(np.asarray(before, dtype=np.int64))
+        matched.append(pairs_now)
+    matched_at_cut = np.zeros((next_id, n_shots - 1), bool)
+    for c, gids in enumerate(matched):
+        for g in gids:
+            matched_at_cut[g, c] = True
+    return Identities(tuple(global_ids), tuple(matchings), tuple(before_ids), matched_at_cut)
+
+
+# ----------------------------------------------------------------------------------------------------
+# 5-6. Assembly, post-processing, result
+
+
+def assemble(shots: Shots, tracks: Sequence[PersonTracks], placement: Placement, ids: Identities) -> PostInput:
+    """World tracks ``(G, T, ...)`` of every global person, ready for post-processing."""
+    G, T = ids.num_people, shots.num_frames
+    orient, transl = np.zeros((G, T, 3)), np.zeros((G, T, 3))
+    body_pose, keypoints = np.zeros((G, T, 23, 3)), np.zeros((G, T, 24, 3))
+    valid = np.zeros((G, T), bool)
+    betas_sum, betas_w = np.zeros((G, 10)), np.zeros(G)
+    for k, (tr, (a, b)) in enumerate(zip(tracks, shots.ranges)):
+        for i, g in enumerate(ids.global_ids[k]):
+            v = tr.valid[i]
+            if valid[g, a:b][v].any():
+                raise InputError(f"shot {k}: two tracks were given global id {g}")
+            sl = np.arange(a, b)[v]
+            orient[g, sl], transl[g, sl] = placement.orient[k][i, v], placement.transl[k][i, v]
+            body_pose[g, sl] = tr.body_pose[i, v]
+            if tr.keypoints2d.shape[2] >= 24:
+                keypoints[g, sl] = tr.keypoints2d[i, v, :24]
+            valid[g, sl] = True
+            betas_sum[g] += v.sum() * tr.betas[i]
+            betas_w[g] += v.sum()
+    betas = betas_sum / np.maximum(betas_w, 1)[:, None]
+    h, w = tracks[0].image_size
+    return PostInput(orient, body_pose, betas, transl, valid, keypoints, placement.K, placement.R, placement.t,
+                     shots.cut_frames, ids.matched_at_cut, (h, w))
+
+
+def to_world_result(shots: Shots, tracks: Sequence[PersonTracks], world: PostInput, ids: Identities,
+                    diagnostics: dict[str, np.ndarray]) -> WorldResult:
+    """The final :class:`WorldResult`."""
+    id_map = np.array([[k, int(tr.track_ids[i]), int(g)] for k, tr in enumerate(tracks)
+                       for i, g in enumerate(ids.global_ids[k])], dtype=np.int64).reshape(-1, 3)
+    return WorldResult(
+        person_ids=np.arange(world.valid.shape[0]), global_orient=world.global_orient, body_pose=world.body_pose,
+        betas=world.betas, transl=world.transl, valid=world.valid, K=world.K, R=world.R, t=world.t,
+        cut_frames=shots.cut_frames, fps=shots.fps, image_size=world.image_size, id_map=id_map,
+        keypoints2d=world.keypoints, diagnostics=diagnostics)
+
+
+def check_inputs(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequence[CameraTrajectory],
+                 spaces: Sequence[SharedSpace]) -> None:
+    """Raise :class:`InputError` when the per-shot inputs do not fit the shots."""
+    if len(tracks) != shots.num_shots or len(trajectories) != shots.num_shots:
+        raise InputError(f"inputs: {shots.num_shots} shots but {len(tracks)} track sets and "
+                         f"{len(trajectories)} camera trajectories")
+    if len(spaces) != shots.num_shots - 1:
+        raise InputError(f"inputs: {shots.num_shots - 1} cuts but {len(spaces)} shared spaces")
+    for k, ((a, b), tr, traj) in enumerate(zip(shots.ranges, tracks, trajectories)):
+        if tr.num_frames != b - a or traj.num_frames != b - a:
+            raise InputError(f"shot {k}: {b - a} frames but tracks have {tr.num_frames} and the camera "
+                             f"trajectory {traj.num_frames}")
+        for name in ("global_orient", "body_pose", "transl", "betas", "keypoints2d"):
+            arr = getattr(tr, name)
+            bad = ~np.isfinite(arr)
+            if name in ("global_orient", "transl", "keypoints2d", "body_pose"):
+                bad = bad.reshape(*arr.shape[:2], -1).any(-1) & tr.valid
+            if bad.any():
+                raise InputError(f"shot {k}: PersonTracks.{name} has non-finite values in valid frames")
+    for c, (space, cut) in enumerate(zip(spaces, shots.cut_frames)):
+        if space.cut_frame != cut:
+            raise InputError(f"cut {c}: shared space is for frame {space.cut_frame}, the cut is at {cut}")
+
+
+def sanitize_tracks(tracks: PersonTracks) -> PersonTracks:
+    """Drop tracks with fewer than one valid frame (nothing to place) — a documented outcome, not an error."""
+    keep = tracks.valid.any(axis=1)
+    if keep.all():
+        return tracks
+    arrays = {f.name: getattr(tracks, f.name) for f in dataclasses.fields(tracks)}
+    for name, value in arrays.items():
+        if isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == len(keep) and name != "K":
+            arrays[name] = value[keep]
+    return PersonTracks(**arrays)
+
+
+def run_video(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequence[CameraTrajectory],
+              spaces: Sequence[SharedSpace], body, config: MethodConfig = MethodConfig()) -> WorldResult:
+    """The whole method in plain Python (module docstring lists the stages)."""
+    tracks = [sanitize_tracks(tr) for tr in tracks]
+    check_inputs(shots, tracks, trajectories, spaces)
+    diagnostics: dict[str, np.ndarray] = {}
+    aligned: list[AlignedBoundary] = []
+    if not config.independent_shots:
+        for c, space in enumerate(spaces):
+            people = boundary_people(tracks[c], tracks[c + 1], body)
+            result = align_boundary(people, space, config.align, skip=config.skip_align)
+            aligned.append(result)
+            diagnostics[f"align_loss_cut{c}"] = result.losses
+            diagnostics[f"space_scale_cut{c}"] = np.float64(result.scale)
+    placement = propagate(shots, tracks, trajectories, aligned, body, independent=config.independent_shots)
+    diagnostics["trajectory_scales"] = placement.trajectory_scales
+    ids = reidentify(tracks, placement, config.reid, config.appearance_window)
+    for c, m in enumerate(ids.matchings):
+        diagnostics[f"reid_cost_cut{c}"] = m.cost
+        diagnostics[f"reid_distance_cut{c}"] = m.distance
+        diagnostics[f"reid_pairs_cut{c}"] = m.pairs
+        diagnostics[f"reid_before_ids_cut{c}"] = ids.before_ids[c]
+    world = assemble(shots, tracks, placement, ids)
+    if not config.skip_post:
+        out = post_process(world, body, config.post)
+        world = dataclasses.replace(world, global_orient=out.global_orient, body_pose=out.body_pose,
+                                    betas=out.betas, transl=out.transl)
+        diagnostics["post_loss"] = out.losses
+    return to_world_result(shots, tracks, world, ids, diagnostics)
