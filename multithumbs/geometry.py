@@ -25,7 +25,7 @@ def numpy_compatible(fn: F) -> F:
         is_numpy = any(isinstance(a, np.ndarray) for a in (*args, *kwargs.values()))
         if not is_numpy:
             return fn(*args, **kwargs)
-        conv = lambda a: torch.from_numpy(np.asarray(a, dtype=np.float64)) if isinstance(a, np.ndarray) else a
+        conv = lambda a: torch.from_numpy(np.array(a, dtype=np.float64)) if isinstance(a, np.ndarray) else a
         out = fn(*(conv(a) for a in args), **{k: conv(v) for k, v in kwargs.items()})
         back = lambda o: o.detach().cpu().numpy() if isinstance(o, torch.Tensor) else o
         if isinstance(out, tuple):
@@ -174,7 +174,7 @@ def umeyama(source: torch.Tensor | np.ndarray, target: torch.Tensor | np.ndarray
     Minimises ``sum_i w_i ||s R x_i + t - y_i||^2`` with the reflection fix, ``s = tr(DS) / var(x)``;
     ``with_scale=False`` gives SE(3) (Kabsch). Numpy inputs are computed in float64.
     """
-    to_t = lambda a: torch.from_numpy(np.asarray(a, dtype=np.float64)) if isinstance(a, np.ndarray) else a
+    to_t = lambda a: torch.from_numpy(np.array(a, dtype=np.float64)) if isinstance(a, np.ndarray) else a
     x, y, w = to_t(source), to_t(target), to_t(weights)
     out = roma.rigid_points_registration(x, y, weights=w, compute_scaling=with_scale)
     if with_scale:

@@ -133,7 +133,7 @@ def post_process(data: PostInput, body, config: PostConfig = PostConfig(), vpose
     losses = []
     for _ in range(config.iterations):
         opt.zero_grad(set_to_none=True)
-        joints = body.joints(orient, body_pose, betas, transl)                  # (P, T, 24, 3)
+        joints = body.joints(orient, body_pose, betas, transl).double()         # (P, T, 24, 3)
         diff = (joints[:, 1:] - joints[:, :-1]).pow(2).sum(-1).mean(-1)
         smooth = (diff * pairs).sum() / pairs.sum().clamp(min=1)
         pose_dev = ((body_pose - pose0).pow(2).sum((-1, -2)) * vmask).sum() / vmask.sum().clamp(min=1)

@@ -1,0 +1,353 @@
+"""Score a reconstruction against ground truth with every metric of METRICS.md.
+
+Coordinate frames, since the predicted world frame is arbitrary:
+
+- pairing of identities, MPJPE, PA-MPJPE, MPVPE and the root-distance ID association use each frame's
+  camera coordinates (prediction through its predicted camera, truth through the true camera): they
+  need no alignment and do not depend on the prediction's world frame. The ``*_world`` variants are the
+  same errors without root alignment, i.e. the prediction placed in the true world through that frame's
+  true camera.
+- W-MPJPE, WA-MPJPE, Accel and FS with ground truth use world joints after a per-person Sim(3)
+  (first two frames, or the whole track; Accel and FS use the whole-track one, so a jump at a cut is
+  not hidden by re-alignment).
+- ATE aligns camera centres with one Sim(3) (or, when they are degenerate, the Sim(3) fitted on all
+  people's joints).
+- PCK*, Jitter and FS (the ``fs`` key) read only the reconstruction.
+
+The body model runs once per reconstruction and once per truth, over all people and frames at once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any, Literal, Sequence
+
+import numpy as np
+import torch
+
+from multithumbs.conventions import NUM_BETAS, NUM_JOINTS
+from multithumbs.errors import InputError
+from multithumbs.geometry import camera_centre, world_to_camera
+from multithumbs.metrics.alignment import (
+    Correspondence, Samples, apply_track_similarities, fit_similarity, pair_people, pelvis,
+    track_similarities,
+)
+from multithumbs.metrics.camera import TrajectoryError, absolute_trajectory_error
+from multithumbs.metrics.gt_free import (
+    mean_of_directions, cross_shot_pck, estimate_up, foot_points, foot_sliding, jitter,
+)
+from multithumbs.metrics.identity import (
+    IdSwitches, associate_by_distance, associate_by_iou, count_id_switches, projected_boxes,
+)
+from multithumbs.metrics.pose import (
+    accel_error, foot_sliding_against_truth, mpjpe, mpvpe, pa_mpjpe, w_mpjpe, wa_mpjpe,
+)
+from multithumbs.types import GroundTruth, WorldResult
+
+W_MPJPE100_CHUNK = 100
+"""Frames per re-alignment window of W-MPJPE100 (WHAM/GVHMR)."""
+
+PCK_ALPHA_STRICT = 0.05
+"""The stricter PCK* threshold, always reported as ``pck_005``."""
+
+
+@dataclass(frozen=True)
+class EvaluationOptions:
+    """Every open choice of the evaluation, with METRICS.md's defaults; the report echoes them.
+
+    Attributes:
+        chunk: W-MPJPE / WA-MPJPE re-alignment window in frames, None for the whole track
+            (``w_mpjpe100`` is always reported as well).
+        root_align: ``mpjpe`` and ``mpvpe`` subtract the pelvis (``*_world`` are always unaligned).
+        include_cuts: Accel and Jitter count windows that span a cut.
+        id_association: ``"box_iou"`` (2D boxes) or ``"root_distance"`` (3D roots, when boxes are
+            unavailable) for the per-frame IDs association.
+        min_iou: IoU a box pair needs to be associated.
+        max_root_distance: metres a root pair may be apart to be associated.
+        pck_alpha: PCK* threshold as a fraction of the keypoint box size (the ``pck`` key).
+        min_keypoint_confidence: PCK* uses keypoints above this confidence.
+        contact_speed: FS with truth: metres per frame under which a true foot point is in contact.
+        contact_height: FS without truth: metres above the ground that count as contact.
+        ground_percentile: FS without truth: percentile of a person's foot heights taken as the ground.
+        up: FS without truth: the reconstruction's up direction; None estimates it from the bodies.
+    """
+
+    chunk: int | None = None
+    root_align: bool = True
+    include_cuts: bool = True
+    id_association: Literal["box_iou", "root_distance"] = "box_iou"
+    min_iou: float = 0.5
+    max_root_distance: float = 0.5
+    pck_alpha: float = 0.1
+    min_keypoint_confidence: float = 0.5
+    contact_speed: float = 0.01
+    contact_height: float = 0.05
+    ground_percentile: float = 5.0
+    up: tuple[float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        if self.chunk is not None and int(self.chunk) < 1:
+            raise InputError(f"chunk: must be a positive number of frames or None, got {self.chunk}")
+        if self.id_association not in ("box_iou", "root_distance"):
+            raise InputError(f"id_association: expected 'box_iou' or 'root_distance', got {self.id_association!r}")
+        for name in ("min_iou", "max_root_distance", "pck_alpha", "contact_speed", "contact_height"):
+            if not getattr(self, name) > 0:
+                raise InputError(f"{name}: must be positive, got {getattr(self, name)}")
+        if not 0 <= self.ground_percentile <= 100:
+            raise InputError(f"ground_percentile: must be in [0, 100], got {self.ground_percentile}")
+        if self.up is not None:
+            up = tuple(float(u) for u in self.up)
+            if len(up) != 3 or not np.linalg.norm(up) > 0:
+                raise InputError(f"up: expected a non-zero 3-vector, got {self.up}")
+            object.__setattr__(self, "up", up)
+
+    @staticmethod
+    def from_kwargs(options: dict[str, Any]) -> "EvaluationOptions":
+        """Build from keyword options, naming any unknown one."""
+        known = EvaluationOptions.__dataclass_fields__
+        unknown = sorted(set(options) - set(known))
+        if unknown:
+            raise InputError(f"evaluation options: unknown {unknown}; known are {sorted(known)}")
+        return EvaluationOptions(**options)
+
+
+@dataclass(frozen=True)
+class SequenceScores:
+    """What one sequence contributes to a report, before pooling.
+
+    Attributes:
+        samples: per-sample values by name (pose errors per frame, Accel per triplet, ATE per
+            frame, PCK* per joint and direction...), pooled frame-weighted across sequences.
+        correspondence: the pairing of true people with predicted identities.
+        id_switches: CLEAR-MOT switches.
+        ate: the camera trajectory error, None when it could not be computed (see ``notes``).
+        notes: metric name -> why it is NaN or how it was computed.
+    """
+
+    samples: dict[str, Samples]
+    correspondence: Correspondence
+    id_switches: IdSwitches
+    ate: TrajectoryError | None
+    notes: dict[str, str] = field(default_factory=dict)
+
+
+def body_points(body_model: Any, world: WorldResult) -> tuple[np.ndarray, np.ndarray]:
+    """Run the body model once over all people and frames.
+
+    Args:
+        body_model: has ``forward(global_orient, body_pose, betas, transl)`` returning ``.joints
+            (..., 24, 3)`` and ``.vertices (..., V, 3)``, and ``num_vertices``; optional ``dtype``.
+        world: the people to pose.
+    Returns:
+        ``joints (P, T, 24, 3)`` and ``vertices (P, T, V, 3)``, float64 metres.
+    """
+    p, t = world.valid.shape
+    if p == 0:
+        return np.zeros((0, t, NUM_JOINTS, 3)), np.zeros((0, t, int(body_model.num_vertices), 3))
+    dtype = getattr(body_model, "dtype", torch.float32)
+    as_tensor = lambda a: torch.as_tensor(np.ascontiguousarray(a), dtype=dtype)
+    betas = np.broadcast_to(world.betas[:, None, :], (p, t, NUM_BETAS))
+    with torch.no_grad():
+        out = body_model.forward(as_tensor(world.global_orient), as_tensor(world.body_pose),
+                                 as_tensor(betas), as_tensor(world.transl))
+    joints = out.joints.detach().cpu().numpy().astype(np.float64)
+    vertices = out.vertices.detach().cpu().numpy().astype(np.float64)
+    if joints.shape != (p, t, NUM_JOINTS, 3) or vertices.shape[:2] != (p, t):
+        raise InputError(f"body_model: expected joints {(p, t, NUM_JOINTS, 3)} and vertices {(p, t, 'V', 3)}, "
+                         f"got {joints.shape} and {vertices.shape}")
+    return joints, vertices
+
+
+def score_sequence(result: WorldResult, truth: GroundTruth, body_model: Any,
+                   options: EvaluationOptions = EvaluationOptions()) -> SequenceScores:
+    """Every metric's samples for one reconstruction of one video (see :func:`evaluate`)."""
+    if result.num_frames != truth.world.num_frames:
+        raise InputError(f"result: {result.num_frames} frames but the ground truth has {truth.world.num_frames}")
+    notes: dict[str, str] = {}
+    pred_joints, pred_vertices = body_points(body_model, result)
+    true_joints, true_vertices = body_points(body_model, truth.world)
+    if pred_vertices.shape[2] != true_vertices.shape[2]:
+        raise InputError(f"body_model: {pred_vertices.shape[2]} vertices for the result but "
+                         f"{true_vertices.shape[2]} for the truth")
+    true_cuts = truth.world.cut_frames
+
+    # Camera coordinates: comparable frame by frame whatever the predicted world frame.
+    pred_joints_cam = world_to_camera(pred_joints, result.R, result.t)
+    pred_vertices_cam = world_to_camera(pred_vertices, result.R, result.t)
+    true_joints_cam = world_to_camera(true_joints, truth.world.R, truth.world.t)
+    true_vertices_cam = world_to_camera(true_vertices, truth.world.R, truth.world.t)
+
+    pairing = pair_people(pelvis(pred_joints_cam), result.valid, pelvis(true_joints_cam), truth.visible)
+    scored = pairing.scored
+    paired_joints, paired_joints_cam = pairing.gather(pred_joints), pairing.gather(pred_joints_cam)
+    paired_vertices_cam = pairing.gather(pred_vertices_cam)
+    switches = _id_switches(result, truth, options, pred_joints_cam, pred_vertices_cam, true_joints_cam)
+
+    samples = {
+        "mpjpe": mpjpe(paired_joints_cam, true_joints_cam, scored, root_align=options.root_align),
+        "mpjpe_world": mpjpe(paired_joints_cam, true_joints_cam, scored, root_align=False),
+        "pa_mpjpe": pa_mpjpe(paired_joints_cam, true_joints_cam, scored),
+        "mpvpe": mpvpe(paired_vertices_cam, true_vertices_cam, paired_joints_cam, true_joints_cam, scored,
+                       root_align=options.root_align),
+        "mpvpe_world": mpvpe(paired_vertices_cam, true_vertices_cam, paired_joints_cam, true_joints_cam,
+                             scored, root_align=False),
+        "w_mpjpe": w_mpjpe(paired_joints, true_joints, scored, chunk=options.chunk),
+        "w_mpjpe100": w_mpjpe(paired_joints, true_joints, scored, chunk=W_MPJPE100_CHUNK),
+        "wa_mpjpe": wa_mpjpe(paired_joints, true_joints, scored, chunk=options.chunk),
+    }
+    del pred_vertices_cam, paired_vertices_cam, true_vertices_cam
+
+    # Accel and FS with truth: world points under the whole-track WA alignment of each person.
+    track_sim, _ = track_similarities(paired_joints, true_joints, scored, "all")
+    aligned_joints = apply_track_similarities(track_sim, paired_joints)
+    samples["accel"] = accel_error(aligned_joints, true_joints, scored, true_cuts, options.include_cuts)
+    foot_ids = getattr(body_model, "foot_vertex_ids", None)
+    pred_feet = foot_points(pred_joints, pred_vertices, foot_ids)
+    aligned_feet = apply_track_similarities(track_sim, pairing.gather(pred_feet))
+    true_feet = foot_points(true_joints, true_vertices, foot_ids)
+    samples["fs_gt"] = foot_sliding_against_truth(aligned_feet, true_feet, scored, true_cuts,
+                                                  options.contact_speed)
+
+    ate = _camera_error(result, truth, paired_joints, true_joints, scored, notes)
+    if ate is not None:
+        samples["ate"] = ate.errors
+
+    samples.update(_gt_free(result, pred_joints, pred_feet, options, notes))
+    return SequenceScores(samples, pairing, switches, ate, notes)
+
+
+def _camera_error(result: WorldResult, truth: GroundTruth, paired_joints: np.ndarray, true_joints: np.ndarray,
+                  scored: np.ndarray, notes: dict[str, str]) -> TrajectoryError | None:
+    """ATE with the shared joint-based WA alignment as the fallback for degenerate centres."""
+    shared, fitted = fit_similarity(paired_joints[scored].reshape(-1, 3), true_joints[scored].reshape(-1, 3))
+    fallback = shared if bool(fitted) else None
+    try:
+        ate = absolute_trajectory_error(camera_centre(result.R, result.t),
+                                        camera_centre(truth.world.R, truth.world.t),
+                                        fallback_alignment=fallback)
+    except InputError as error:
+        notes["ate"] = f"not computed: {error}"
+        return None
+    if ate.fallback:
+        notes["ate"] = (f"camera centres degenerate (cross-covariance rank {ate.centre_rank}): aligned with "
+                        "the Sim(3) fitted on all people's joints")
+    return ate
+
+
+def _id_switches(result: WorldResult, truth: GroundTruth, options: EvaluationOptions,
+                 pred_joints_cam: np.ndarray, pred_vertices_cam: np.ndarray, true_joints_cam: np.ndarray
+                 ) -> IdSwitches:
+    """Per-frame association (box IoU or root distance) and the CLEAR-MOT switches."""
+    if options.id_association == "box_iou":
+        # Predicted boxes: the predicted mesh projected by the predicted camera, clipped to the image.
+        boxes, in_image = projected_boxes(pred_vertices_cam, result.K, result.image_size)
+        matched = associate_by_iou(truth.bboxes, truth.visible, boxes, result.valid & in_image, options.min_iou)
+    else:
+        matched = associate_by_distance(pelvis(true_joints_cam), truth.visible, pelvis(pred_joints_cam),
+                                        result.valid, options.max_root_distance)
+    return count_id_switches(matched, result.person_ids, len(truth.world.cut_frames))
+
+
+def _gt_free(result: WorldResult, pred_joints: np.ndarray, pred_feet: np.ndarray, options: EvaluationOptions,
+             notes: dict[str, str]) -> dict[str, Samples]:
+    """PCK*, Jitter and height-based FS from the reconstruction alone."""
+    out = {"jitter": jitter(pred_joints, result.valid, result.fps, result.cut_frames, options.include_cuts)}
+    keypoints = result.keypoints2d
+    if keypoints is None:
+        notes["pck"] = "result.keypoints2d is None: PCK* needs the observed 2D keypoints"
+    elif keypoints.shape[2] != NUM_JOINTS:
+        notes["pck"] = f"result.keypoints2d has {keypoints.shape[2]} keypoints: PCK* needs the 24 SMPL-order ones"
+    elif not len(result.cut_frames):
+        notes["pck"] = "single-shot video: PCK* is measured across cuts"
+    else:
+        for key, alpha in (("pck", options.pck_alpha), ("pck_005", PCK_ALPHA_STRICT)):
+            pck = cross_shot_pck(pred_joints, result.valid, keypoints, result.K, result.R, result.t,
+                                 result.cut_frames, alpha, options.min_keypoint_confidence)
+            out[f"{key}_forward"], out[f"{key}_backward"] = pck.forward, pck.backward
+    if "pck" in notes:
+        notes["pck_005"] = notes["pck"]
+    if options.up is not None:
+        up = np.asarray(options.up)
+    elif result.valid.any():
+        up = estimate_up(pred_joints, result.valid)
+    else:
+        up = None
+        notes["fs"] = "no valid body in the result"
+    if up is not None:
+        out["fs"] = foot_sliding(pred_feet, result.valid, up, result.cut_frames, options.contact_height,
+                                 options.ground_percentile)
+    return out
+
+
+POOLED_MEANS = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "jitter", "fs",
+                "mpjpe_world", "mpvpe_world", "w_mpjpe100", "fs_gt")
+"""Metrics reported as the mean of their pooled samples."""
+
+
+def summarize(scores: Sequence[SequenceScores], options: EvaluationOptions) -> dict[str, Any]:
+    """Pool sequences into the report: frame-weighted means, ATE RMSE over all frames, IDs per sequence.
+
+    Returns:
+        a flat dict: ``w_mpjpe, wa_mpjpe, mpjpe, pa_mpjpe, mpvpe`` (mm), ``accel`` (mm/frame^2),
+        ``ate`` (RMSE, m), ``ids`` (switches per sequence), ``pck`` (%), ``jitter`` (10 m/s^3), ``fs``
+        (mm/frame), and ``coverage, ids_per_cut, pck_005, ate_mean, ate_fallback, mpjpe_world,
+        mpvpe_world, w_mpjpe100, fs_gt`` (mm), ``num_sequences, scored_frames, notes, options``.
+    """
+    if not scores:
+        raise InputError("sequences: nothing to evaluate")
+
+    def pooled(name: str) -> Samples:
+        return Samples.concatenate([s.samples[name] for s in scores if name in s.samples])
+
+    report: dict[str, Any] = {name: pooled(name).mean() for name in POOLED_MEANS}
+    ate = pooled("ate")
+    report["ate"], report["ate_mean"] = ate.rms(), ate.mean()
+    report["ate_fallback"] = any(s.ate is not None and s.ate.fallback for s in scores)
+    totals = [s.id_switches.total for s in scores]
+    cuts = sum(s.id_switches.num_cuts for s in scores)
+    report["ids"] = float(np.mean(totals))
+    report["ids_per_cut"] = sum(totals) / cuts if cuts else float("nan")
+    for key in ("pck", "pck_005"):
+        report[key] = mean_of_directions(pooled(f"{key}_forward").mean(), pooled(f"{key}_backward").mean())
+    visible = sum(int(s.correspondence.visible.sum()) for s in scores)
+    scored = sum(int(s.correspondence.scored.sum()) for s in scores)
+    report["coverage"] = scored / visible if visible else float("nan")
+    report["scored_frames"] = scored
+    report["num_sequences"] = len(scores)
+    notes: dict[str, str] = {}
+    for index, s in enumerate(scores):
+        for key, note in s.notes.items():
+            text = note if len(scores) == 1 else f"sequence {index}: {note}"
+            notes[key] = f"{notes[key]}; {text}" if key in notes else text
+    for name in (*POOLED_MEANS, "ate", "pck", "pck_005"):
+        if np.isnan(report[name]) and name not in notes:
+            notes[name] = "no samples to score (nothing valid, visible or in contact)"
+    report["notes"] = notes
+    report["options"] = asdict(options)
+    return report
+
+
+def evaluate(result: WorldResult, truth: GroundTruth, body_model: Any, **options: Any) -> dict[str, Any]:
+    """Score one reconstruction against its ground truth with every metric of METRICS.md.
+
+    Args:
+        result: the reconstruction (any world frame).
+        truth: the ground truth.
+        body_model: see :func:`body_points`; ``foot_vertex_ids`` (None or indices) picks the foot points.
+        **options: fields of :class:`EvaluationOptions`.
+    Returns:
+        the report of :func:`summarize`. Missing inputs give NaN with a reason in ``notes`` (e.g.
+        ``pck`` without ``result.keypoints2d``).
+    """
+    opts = EvaluationOptions.from_kwargs(options)
+    return summarize([score_sequence(result, truth, body_model, opts)], opts)
+
+
+def evaluate_sequences(pairs: Sequence[tuple[WorldResult, GroundTruth]], body_model: Any,
+                       **options: Any) -> dict[str, Any]:
+    """Score several sequences and pool them: means over all scored frames of all people of all
+    sequences (frame-weighted), IDs averaged over sequences. Options as :func:`evaluate`."""
+    opts = EvaluationOptions.from_kwargs(options)
+    if not pairs:
+        raise InputError("sequences: nothing to evaluate")
+    return summarize([score_sequence(result, truth, body_model, opts) for result, truth in pairs], opts)
