@@ -141,7 +141,7 @@ def main() -> None:
     try:
         app(standalone_mode=False)
     except InputError as exc:
-        console.print(f"error: {exc}", markup=False, highlight=False)
+        print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
     except (typer.Exit, SystemExit) as exc:
         raise
@@ -149,7 +149,7 @@ def main() -> None:
         import click
 
         if isinstance(exc, click.exceptions.ClickException):
-            console.print(f"error: {exc.format_message()}", markup=False, highlight=False)
+            print(f"error: {exc.format_message()}", file=sys.stderr)
             sys.exit(exc.exit_code)
         if isinstance(exc, click.exceptions.Abort):
             sys.exit(130)

@@ -1,0 +1,61 @@
+import numpy as np
+
+from multithumbs.appearance import DESCRIPTOR_SIZE, REGION_SIZE
+from multithumbs.method.reid import Candidates, ReidConfig, match_people, pose_dissimilarity
+
+
+def _descriptor(hue_bin: int) -> np.ndarray:
+    d = np.zeros(DESCRIPTOR_SIZE)
+    for r in range(4):
+        d[r * REGION_SIZE] = 1.0
+        d[r * REGION_SIZE + 1 + hue_bin] = 1.0
+    return d
+
+
+def _people(roots, hues, rng):
+    n = len(roots)
+    return Candidates(np.asarray(roots, float), np.stack([_descriptor(h) for h in hues]) if n else np.zeros((0, DESCRIPTOR_SIZE)),
+                      rng.normal(0, 0.3, (n, 23, 3)), np.ones((n, 23), bool))
+
+
+def test_solves_a_permuted_assignment():
+    rng = np.random.default_rng(0)
+    before = _people([[0, 0, 0], [2, 0, 0], [0, 2, 0], [3, 3, 0]], [0, 6, 12, 18], rng)
+    perm = np.array([2, 0, 3, 1])
+    after = Candidates(before.root[perm] + rng.normal(0, 0.05, (4, 3)), before.appearance[perm],
+                       before.body_pose[perm], before.joint_visible[perm])
+    m = match_people(before, after)
+    got = dict(map(tuple, m.pairs))
+    assert got == {int(perm[j]): j for j in range(4)}
+    assert m.cost.shape == (4, 4)
+
+
+def test_rejects_a_far_pair_and_handles_empty_sides():
+    rng = np.random.default_rng(1)
+    before = _people([[0, 0, 0], [5, 0, 0]], [0, 6], rng)
+    after = _people([[0.1, 0, 0], [5.0, 3.0, 0]], [0, 6], rng)  # the second moved 3 m: someone else
+    m = match_people(before, after)
+    assert m.pairs.tolist() == [[0, 0]]
+    none = match_people(before, _people(np.zeros((0, 3)), [], rng))
+    assert none.pairs.shape == (0, 2) and none.cost.shape == (2, 0)
+
+
+def test_appearance_and_pose_break_a_distance_tie():
+    rng = np.random.default_rng(2)
+    before = _people([[0, 0, 0], [0.3, 0, 0]], [0, 12], rng)
+    after = Candidates(np.array([[0.15, 0, 0], [0.15, 0, 0]]), before.appearance[::-1], before.body_pose[::-1],
+                       before.joint_visible)
+    assert match_people(before, after).pairs.tolist() == [[0, 1], [1, 0]]
+    geo_only = match_people(before, after, ReidConfig(w_app=0, w_pose=0))
+    assert len(geo_only.pairs) == 2  # a tie: any assignment, but both kept within tau
+
+
+def test_pose_dissimilarity_counts_only_joints_visible_in_both():
+    a = np.zeros((1, 23, 3))
+    b = np.zeros((1, 23, 3))
+    b[0, 5] = [0.5, 0, 0]
+    vis_all = np.ones((1, 23), bool)
+    vis_not5 = vis_all.copy()
+    vis_not5[0, 5] = False
+    np.testing.assert_allclose(pose_dissimilarity(a, b, vis_all, vis_all), [[0.5 / 23]])
+    np.testing.assert_allclose(pose_dissimilarity(a, b, vis_all, vis_not5), [[0.0]])

@@ -1,0 +1,58 @@
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+
+def run_cli(*args, env_extra=None):
+    env = dict(os.environ, **(env_extra or {}))
+    return subprocess.run([sys.executable, "-m", "multithumbs.cli", *map(str, args)], capture_output=True,
+                          text=True, env=env, timeout=600)
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--people", "0"], "people"),
+    (["--shots", "5", "--frames", "4"], "frames"),
+    (["--cut-angle", "400"], "cut-angle"),
+])
+def test_synth_rejects_impossible_parameters(tmp_path, args, needle):
+    out = run_cli("synth", "--out", tmp_path / "o", *args)
+    assert out.returncode == 2
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0] and "Traceback" not in out.stderr
+    assert not (tmp_path / "o" / "video.mp4").exists()
+
+
+def test_synth_rejects_an_unwritable_output(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    out = run_cli("synth", "--out", blocker / "sub", "--frames", "4")
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
+    assert blocker.read_text() == "not a folder"
+
+
+def test_synth_then_eval_ground_truth_against_itself(tmp_path):
+    out_dir = tmp_path / "scene"
+    out = run_cli("synth", "--out", out_dir, "--people", "2", "--shots", "2", "--frames", "8",
+                  "--width", "320", "--height", "180", "--seed", "3")
+    assert out.returncode == 0, out.stderr
+    for name in ("video.mp4", "ground_truth.npz", "contact_sheet.png"):
+        assert (out_dir / name).stat().st_size > 0
+    # Existing outputs are never overwritten silently.
+    again = run_cli("synth", "--out", out_dir, "--frames", "8")
+    assert again.returncode == 2 and "already exists" in again.stderr
+    gt = out_dir / "ground_truth.npz"
+    scores = run_cli("eval", gt, gt, "--json")
+    assert scores.returncode == 0, scores.stderr
+    metrics = json.loads(scores.stdout)
+    for key in ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "ate", "ids"):
+        assert metrics[key] == pytest.approx(0.0, abs=1e-6), key
+    assert metrics["ids"] == 0
+
+
+def test_eval_names_a_missing_file(tmp_path):
+    out = run_cli("eval", tmp_path / "nope.npz", tmp_path / "gt.npz")
+    assert out.returncode == 2 and "nope.npz" in out.stderr and len(out.stderr.strip().splitlines()) == 1
