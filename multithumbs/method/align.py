@@ -273,7 +273,7 @@ class _Problem:
             for p in np.nonzero(people.present[k])[0]:
                 outside = ~(masks[k, p] | others[k, p])
                 dist[k, p] = ndimage.distance_transform_edt(outside) / self.norm if masks[k, p].any() else 0.0
-        self.sil_dist = torch.as_tensor(dist)
+        self.sil_dist = torch.as_tensor(dist, dtype=torch.float64).reshape(-1, 1, h, w)
         self.masks = torch.as_tensor(masks)
         self.point_map = as_t(maps)
         self.point_valid = torch.as_tensor(valid)
@@ -311,14 +311,14 @@ class _Problem:
         # Silhouette: bilinear sample of the distance transform at the projected vertices.
         h, w = self.size
         grid = torch.stack([vuv[..., 0] / (w - 1) * 2 - 1, vuv[..., 1] / (h - 1) * 2 - 1], dim=-1)
-        sil = torch.nn.functional.grid_sample(self.sil_dist.reshape(-1, 1, h, w).double(),
-                                              grid.reshape(-1, 1, grid.shape[-2], 2), align_corners=True,
+        sil = torch.nn.functional.grid_sample(self.sil_dist, grid.reshape(-1, 1, grid.shape[-2], 2), align_corners=True,
                                               padding_mode="border").reshape(verts.shape[:-1])
         present = self.present[..., None].double()
         loss_sil = (sil * present).sum() / (present.sum() * verts.shape[-2]).clamp(min=1)
         # Depth: camera-facing vertices inside the mask vs the scene point at their pixel.
-        normals = self.local_normals @ rot.transpose(-1, -2)
-        facing = ((normals @ R.unsqueeze(1).transpose(-1, -2))[..., 2] < 0)         # normal towards the camera
+        with torch.no_grad():  # which vertices face the camera: a selection, not a gradient path
+            normals_cam = self.local_normals @ (R.unsqueeze(1) @ rot).transpose(-1, -2)
+            facing = normals_cam[..., 2] < 0
         ui = vuv[..., 0].detach().round().long().clamp(0, w - 1)
         vi = vuv[..., 1].detach().round().long().clamp(0, h - 1)
         frame = torch.arange(2)[:, None, None].expand_as(ui)

@@ -1,0 +1,390 @@
+"""The SMPL body model: ``smplx.SMPL`` over a user's SMPL file or the procedural body.
+
+Which file: the ``model_path`` argument, else ``$MULTITHUMBS_SMPL_MODEL``, else the procedural body
+(:func:`multithumbs.body.procedural.procedural_model_path`). Every file goes through ``smplx.SMPL``, so
+posing is SMPL's own linear blend skinning whichever body is loaded.
+
+Batch rule of :meth:`BodyModel.forward`: ``global_orient``, ``body_pose`` and ``transl`` broadcast
+against each other like numpy arrays; ``betas`` are aligned with the LEADING batch dimensions (padded
+with trailing singleton dimensions) and then broadcast, because shape belongs to a person, not a frame:
+poses ``(P, T, ...)`` with ``betas (P, 10)`` give person ``p`` the shape ``betas[p]`` in every frame;
+``betas (10,)`` apply to every pose; ``betas (P, T, 10)`` are per frame.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import io
+import os
+import pickle
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import smplx
+import torch
+from smplx.lbs import vertices2joints
+from smplx.utils import Struct
+
+from multithumbs.body.procedural import procedural_model_path, write_npz
+from multithumbs.conventions import NUM_BETAS, NUM_BODY_JOINTS, NUM_JOINTS
+from multithumbs.errors import InputError
+
+MODEL_ENV_VAR = "MULTITHUMBS_SMPL_MODEL"
+"""Environment variable naming the user's SMPL file (``.npz`` or ``.pkl``)."""
+
+SMPL_NUM_VERTICES = 6890
+SMPL_FOOT_VERTEX_IDS = np.array([3216, 3387, 6617, 6787])
+"""SMPL's left big toe, left heel, right big toe, right heel (smplx's ``vertex_ids['smplh']``)."""
+
+VERTICES_PER_CALL = 4_000_000
+"""Poses per ``smplx`` call are capped so that a call handles about this many vertices (bounds memory)."""
+
+_REQUIRED = ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table", "f")
+
+
+@dataclass(frozen=True)
+class BodyOutput:
+    """A posed body.
+
+    Attributes:
+        vertices: ``(..., V, 3)`` mesh vertices (metres, in the frame of ``global_orient``/``transl``).
+        joints: ``(..., 24, 3)`` SMPL joints (smplx's first 24), same frame.
+    """
+
+    vertices: torch.Tensor
+    joints: torch.Tensor
+
+
+def resolve_model_path(model_path: str | Path | None = None) -> tuple[Path, str]:
+    """The body file to load and its source label (``"procedural"`` or the resolved path).
+
+    Order: ``model_path``, else ``$MULTITHUMBS_SMPL_MODEL``, else the procedural body (generated into
+    the cache on first use). Raises :class:`InputError` if a named file does not exist.
+    """
+    named = model_path if model_path is not None else os.environ.get(MODEL_ENV_VAR) or None
+    if named is None:
+        return procedural_model_path().resolve(), "procedural"
+    origin = "model_path" if model_path is not None else f"${MODEL_ENV_VAR}"
+    path = Path(named).expanduser().resolve()
+    if not path.is_file():
+        raise InputError(f"{origin}: SMPL model file {path} does not exist")
+    if path.suffix.lower() not in (".npz", ".pkl"):
+        raise InputError(f"{origin}: SMPL model file {path} must be .npz (numpy) or .pkl, got {path.suffix!r}")
+    return path, str(path)
+
+
+class BodyModel:
+    """A loaded SMPL-format body model (``smplx.SMPL`` underneath, in ``self.smpl``).
+
+    Attributes:
+        source: ``"procedural"`` or the resolved path of the user's file.
+        smpl: the ``smplx.SMPL`` module doing the forward pass.
+        dtype: torch dtype of the model; inputs are cast to it.
+        faces: ``(F, 3)`` int64 triangles.
+        parents: ``(24,)`` int64 kinematic tree (-1 for the root).
+        part_labels: ``(V,)`` int64 joint with the largest skinning weight of each vertex.
+        num_vertices: ``V``.
+        foot_vertex_ids: ``(4,)`` left toe, left heel, right toe, right heel vertices: SMPL's
+            ``[3216, 3387, 6617, 6787]`` when ``V == 6890``, else the same landmarks found on the mesh.
+        vertex_ids: landmark name -> vertex id handed to ``smplx`` for its extra joints.
+        chunk_size: poses per ``smplx`` call (larger batches are split to bound memory).
+    """
+
+    def __init__(self, model_path: str | Path | None = None, dtype: torch.dtype = torch.float32):
+        path, self.source = resolve_model_path(model_path)
+        self.dtype = dtype
+        if path.suffix.lower() == ".npz":
+            arrays = _read_npz(path)
+            vertex_ids = None if len(arrays["v_template"]) == SMPL_NUM_VERTICES else landmark_vertex_ids(
+                arrays["v_template"], arrays["weights"], arrays["J_regressor"] @ arrays["v_template"])
+            self.smpl = _make_smpl(path, Struct(**arrays), vertex_ids, dtype)
+        else:
+            self.smpl, vertex_ids = _load_pickled_smpl(path, dtype)
+        smpl = self.smpl
+        weights = smpl.lbs_weights.double().numpy()
+        if vertex_ids is None:  # smplx used SMPL's own landmarks
+            vertex_ids = dict(smplx.vertex_ids.vertex_ids["smplh"])
+        self.vertex_ids: dict[str, int] = {k: int(v) for k, v in vertex_ids.items()}
+        self.faces: np.ndarray = np.asarray(smpl.faces, dtype=np.int64)
+        self.parents: np.ndarray = smpl.parents.numpy().astype(np.int64)
+        self.part_labels: np.ndarray = weights.argmax(axis=1).astype(np.int64)
+        self.num_vertices: int = int(smpl.v_template.shape[0])
+        self.foot_vertex_ids: np.ndarray = (
+            SMPL_FOOT_VERTEX_IDS.copy() if self.num_vertices == SMPL_NUM_VERTICES else
+            np.array([self.vertex_ids[k] for k in ("LBigToe", "LHeel", "RBigToe", "RHeel")]))
+        # Poses per smplx call: about VERTICES_PER_CALL vertices at a time.
+        self.chunk_size = max(1, VERTICES_PER_CALL // self.num_vertices)
+
+    def __repr__(self) -> str:
+        return f"BodyModel(source={self.source!r}, vertices={self.num_vertices}, dtype={self.dtype})"
+
+    def forward(self, global_orient, body_pose, betas, transl=None) -> BodyOutput:
+        """Pose the body. Numpy or torch inputs (cast to the model's dtype); torch outputs.
+
+        Args:
+            global_orient: ``(..., 3)`` axis-angle rotation of the body about the pelvis joint.
+            body_pose: ``(..., 23, 3)`` or ``(..., 69)`` axis-angle joint rotations (SMPL joints 1..23).
+            betas: ``(..., 10)`` shape, aligned with the leading batch dimensions (module docstring).
+            transl: ``(..., 3)`` translation added to every vertex and joint, or ``None``.
+        Returns:
+            vertices ``(*B, V, 3)`` and joints ``(*B, 24, 3)``, ``B`` the broadcast batch shape.
+            Differentiable with respect to every input.
+        """
+        orient = self._tensor("global_orient", global_orient, (3,))
+        pose = self._tensor("body_pose", body_pose, None)
+        if pose.shape[-2:] == (NUM_BODY_JOINTS, 3):
+            pose = pose.flatten(-2)
+        elif pose.ndim == 0 or pose.shape[-1] != 3 * NUM_BODY_JOINTS:
+            raise InputError(f"body_pose: expected shape (..., 23, 3) or (..., 69), got {tuple(pose.shape)}")
+        shape = self._tensor("betas", betas, (NUM_BETAS,))
+        shift = None if transl is None else self._tensor("transl", transl, (3,))
+
+        try:
+            batch = torch.broadcast_shapes(orient.shape[:-1], pose.shape[:-1],
+                                           *(() if shift is None else (shift.shape[:-1],)))
+        except RuntimeError:
+            raise InputError(f"global_orient {tuple(orient.shape)}, body_pose {tuple(pose.shape)}"
+                             + ("" if shift is None else f", transl {tuple(shift.shape)}")
+                             + ": batch shapes do not broadcast") from None
+        pad = len(batch) - (shape.ndim - 1)
+        if pad > 0:  # person-level betas: align with the leading batch dimensions
+            shape = shape.reshape(*shape.shape[:-1], *([1] * pad), NUM_BETAS)
+        try:
+            batch = torch.broadcast_shapes(batch, shape.shape[:-1])
+        except RuntimeError:
+            raise InputError(f"betas {tuple(shape.shape)}: batch does not broadcast against the pose "
+                             f"batch {tuple(batch)} (betas align with the leading dimensions)") from None
+
+        flat = lambda x: x.expand(*batch, x.shape[-1]).reshape(-1, x.shape[-1])  # noqa: E731
+        orient, pose, shape = flat(orient), flat(pose), flat(shape)
+        shift = None if shift is None else flat(shift)
+        n = orient.shape[0]
+        if n == 0:
+            empty = lambda k: torch.zeros(*batch, k, 3, dtype=self.dtype)  # noqa: E731
+            return BodyOutput(empty(self.num_vertices), empty(NUM_JOINTS))
+        vertices, joints = [], []
+        for start in range(0, n, self.chunk_size):
+            part = slice(start, start + self.chunk_size)
+            out = self.smpl(global_orient=orient[part], body_pose=pose[part], betas=shape[part],
+                            transl=None if shift is None else shift[part])
+            vertices.append(out.vertices)
+            joints.append(out.joints[:, :NUM_JOINTS])
+        cat = lambda xs, k: (xs[0] if len(xs) == 1 else torch.cat(xs)).reshape(*batch, k, 3)  # noqa: E731
+        return BodyOutput(cat(vertices, self.num_vertices), cat(joints, NUM_JOINTS))
+
+    __call__ = forward
+
+    def rest_joints(self, betas) -> torch.Tensor:
+        """``(..., 24, 3)`` joints of the shaped T-pose (zero pose, no translation) for ``betas (..., 10)``."""
+        shape = self._tensor("betas", betas, (NUM_BETAS,))
+        flat = shape.reshape(-1, NUM_BETAS)
+        shaped = self.smpl.forward_shape(betas=flat).v_shaped
+        return vertices2joints(self.smpl.J_regressor, shaped).reshape(*shape.shape[:-1], NUM_JOINTS, 3)
+
+    def _tensor(self, name: str, value, trailing: tuple[int, ...] | None) -> torch.Tensor:
+        """``value`` as a tensor of the model's dtype with trailing dimensions ``trailing`` (checked)."""
+        if value is None:
+            raise InputError(f"{name}: required, got None")
+        tensor = torch.as_tensor(np.asarray(value) if not torch.is_tensor(value) else value)
+        if not (tensor.is_floating_point() or tensor.dtype in (torch.int32, torch.int64)):
+            raise InputError(f"{name}: expected real numbers, got dtype {tensor.dtype}")
+        if trailing is not None and (tensor.ndim < len(trailing) or tuple(tensor.shape[-len(trailing):]) != trailing):
+            raise InputError(f"{name}: expected shape (..., {', '.join(map(str, trailing))}), "
+                             f"got {tuple(tensor.shape)}")
+        return tensor.to(self.dtype)
+
+
+@functools.lru_cache(maxsize=8)
+def _load_cached(path: Path, source: str, mtime_ns: int) -> BodyModel:
+    return BodyModel(None if source == "procedural" else path)
+
+
+def load_body_model(model_path: str | Path | None = None) -> BodyModel:
+    """A shared float32 :class:`BodyModel`, cached by resolved path (and the file's modification time)."""
+    path, source = resolve_model_path(model_path)
+    return _load_cached(path, source, path.stat().st_mtime_ns)
+
+
+def landmark_vertex_ids(v_template: np.ndarray, weights: np.ndarray, joints: np.ndarray) -> dict[str, int]:
+    """Vertices for smplx's extra joints (nose, eyes, ears, toes, heels, finger tips) on any SMPL-format mesh.
+
+    Each landmark is the vertex of the right body part lying furthest in the landmark's direction in the
+    rest pose (SMPL body frame: +y up, +z front, +x left).
+
+    Args:
+        v_template: ``(V, 3)`` rest vertices.
+        weights: ``(V, 24)`` skinning weights (a vertex's part is its largest weight).
+        joints: ``(24, 3)`` rest joints.
+    Returns:
+        the ``vertex_ids`` dict ``smplx.SMPL`` takes (the keys of ``smplx.vertex_ids.vertex_ids['smplh']``).
+    """
+    v = np.asarray(v_template, float)
+    part = np.asarray(weights).argmax(axis=1)
+
+    def extreme(parts: tuple[int, ...], score: np.ndarray) -> int:
+        candidates = np.flatnonzero(np.isin(part, parts))
+        if candidates.size == 0:  # no such part: the nearest vertex to the part's joint
+            return int(np.argmin(np.linalg.norm(v - joints[parts[0]], axis=1)))
+        return int(candidates[np.argmax(score[candidates])])
+
+    head = v - joints[15]
+    ids = {
+        "nose": extreme((15,), head[:, 2] - 2 * np.abs(head[:, 0]) - np.abs(head[:, 1] - 0.03)),
+        "reye": extreme((15,), head[:, 2] - np.abs(head[:, 0] + 0.03) - np.abs(head[:, 1] - 0.06)),
+        "leye": extreme((15,), head[:, 2] - np.abs(head[:, 0] - 0.03) - np.abs(head[:, 1] - 0.06)),
+        "rear": extreme((15,), -head[:, 0] - np.abs(head[:, 1] - 0.03) - np.abs(head[:, 2])),
+        "lear": extreme((15,), head[:, 0] - np.abs(head[:, 1] - 0.03) - np.abs(head[:, 2])),
+    }
+    for side, sign, (ankle, foot, hand) in (("L", 1.0, (7, 10, 22)), ("R", -1.0, (8, 11, 23))):
+        toe = v - joints[foot]
+        ids[f"{side}BigToe"] = extreme((foot,), toe[:, 2] - 0.5 * sign * toe[:, 0] - toe[:, 1])
+        ids[f"{side}SmallToe"] = extreme((foot,), toe[:, 2] + 0.5 * sign * toe[:, 0] - toe[:, 1])
+        heel = v - joints[ankle]
+        ids[f"{side}Heel"] = extreme((ankle,), -heel[:, 2] - heel[:, 1] - np.abs(heel[:, 0]))
+        # Palm down in the T-pose: the thumb points forward (+z), the fingers outward (sign * x).
+        finger = v - joints[hand]
+        along, across = sign * finger[:, 0], finger[:, 2]
+        prefix = side.lower()
+        ids[f"{prefix}thumb"] = extreme((hand, hand - 2), across - 0.5 * along)
+        for name, offset in (("index", 0.025), ("middle", 0.0), ("ring", -0.02), ("pinky", -0.035)):
+            ids[f"{prefix}{name}"] = extreme((hand,), along - 3 * np.abs(across - offset))
+    return ids
+
+
+def convert_smpl_pickle(source: str | Path, destination: str | Path) -> Path:
+    """Convert an official SMPL ``.pkl`` (chumpy arrays, Python 2 pickle) to a plain numpy ``.npz``.
+
+    chumpy does not run on current Python; this reads its pickled arrays without it (chumpy ``Ch``
+    objects become their ``x`` array, scipy sparse matrices become dense) and writes the arrays
+    ``smplx.SMPL`` needs. Point ``$MULTITHUMBS_SMPL_MODEL`` at the result.
+    """
+    source = Path(source)
+    try:
+        with open(source, "rb") as file:
+            data = _ChumpyFreeUnpickler(file, encoding="latin1").load()
+    except Exception as error:  # pickle raises many types for a broken or foreign file
+        raise InputError(f"SMPL model {source}: cannot be read as a pickle ({type(error).__name__}: {error})") from None
+    if not isinstance(data, dict):
+        raise InputError(f"SMPL model {source}: expected a pickled dict of arrays, got {type(data).__name__}")
+    arrays = {}
+    for key in _REQUIRED:
+        if key not in data:
+            raise InputError(f"SMPL model {source}: has no {key!r} array")
+        value = data[key]
+        value = value.toarray() if hasattr(value, "toarray") else _plain(value)
+        arrays[key] = np.asarray(value)
+    arrays["f"] = arrays["f"].astype(np.int64)
+    arrays["kintree_table"] = arrays["kintree_table"].astype(np.int64)
+    arrays["kintree_table"][0, 0] = -1
+    return write_npz(destination, arrays)
+
+
+def _plain(value):
+    """A chumpy stand-in's array, or the value itself."""
+    return value.state.get("x") if isinstance(value, _PickledObject) else value
+
+
+class _PickledObject:
+    """Stand-in for classes of modules that cannot be imported (chumpy): keeps the pickled state."""
+
+    state: dict = {}
+
+    def __setstate__(self, state):
+        self.state = state if isinstance(state, dict) else {"state": state}
+
+
+class _PickledCsc(_PickledObject):
+    """Stand-in for a pickled scipy ``csc_matrix`` of any scipy version, rebuilt densely."""
+
+    layout = "csc"
+
+    def toarray(self) -> np.ndarray:
+        import scipy.sparse
+
+        s = self.state
+        matrix = scipy.sparse.csr_matrix if self.layout == "csr" else scipy.sparse.csc_matrix
+        return matrix((s["data"], s["indices"], s["indptr"]), shape=tuple(s.get("_shape", s.get("shape")))).toarray()
+
+
+class _PickledCsr(_PickledCsc):
+    layout = "csr"
+
+
+class _ChumpyFreeUnpickler(pickle.Unpickler):
+    def find_class(self, module: str, name: str):
+        if module.split(".")[0] == "chumpy":
+            return _PickledObject
+        if module.startswith("scipy.sparse") and name in ("csc_matrix", "csr_matrix"):
+            return _PickledCsr if name == "csr_matrix" else _PickledCsc
+        return super().find_class(module, name)
+
+
+def _read_npz(path: Path) -> dict[str, np.ndarray]:
+    """The arrays of a numpy SMPL file, checked."""
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            arrays = {key: npz[key] for key in npz.files}
+    except Exception as error:  # zipfile/numpy raise many types for a broken file
+        raise InputError(f"SMPL model {path}: not a readable numpy .npz file ({error})") from None
+    missing = [key for key in _REQUIRED if key not in arrays]
+    if missing:
+        raise InputError(f"SMPL model {path}: missing arrays {missing} (an SMPL .npz needs {list(_REQUIRED)})")
+    n = arrays["v_template"].shape[0] if arrays["v_template"].ndim == 2 else -1
+    expected = {"v_template": (n, 3), "J_regressor": (NUM_JOINTS, n), "weights": (n, NUM_JOINTS),
+                "kintree_table": (2, NUM_JOINTS)}
+    for key, shape in expected.items():
+        if arrays[key].shape != shape or n < 1:
+            raise InputError(f"SMPL model {path}: {key} has shape {arrays[key].shape}, expected {shape}")
+    if arrays["shapedirs"].ndim != 3 or arrays["shapedirs"].shape[:2] != (n, 3) or arrays["shapedirs"].shape[2] < NUM_BETAS:
+        raise InputError(f"SMPL model {path}: shapedirs has shape {arrays['shapedirs'].shape}, "
+                         f"expected ({n}, 3, >= {NUM_BETAS})")
+    if arrays["posedirs"].shape != (n, 3, 9 * NUM_BODY_JOINTS):
+        raise InputError(f"SMPL model {path}: posedirs has shape {arrays['posedirs'].shape}, "
+                         f"expected ({n}, 3, {9 * NUM_BODY_JOINTS})")
+    faces = arrays["f"]
+    if faces.ndim != 2 or faces.shape[1] != 3 or faces.size == 0 or faces.min() < 0 or faces.max() >= n:
+        raise InputError(f"SMPL model {path}: f must be (F, 3) vertex indices below {n}")
+    return arrays
+
+
+def _make_smpl(path: Path, data: Struct | None, vertex_ids: dict[str, int] | None,
+               dtype: torch.dtype) -> smplx.SMPL:
+    # smplx prints a warning for models with only 10 shape components (the usual case): keep it quiet.
+    with contextlib.redirect_stdout(io.StringIO()):
+        return smplx.SMPL(model_path=str(path), data_struct=data, num_betas=NUM_BETAS, vertex_ids=vertex_ids,
+                          create_global_orient=False, create_body_pose=False, create_betas=False,
+                          create_transl=False, dtype=dtype)
+
+
+def _load_pickled_smpl(path: Path, dtype: torch.dtype) -> tuple[smplx.SMPL, dict[str, int] | None]:
+    """An SMPL ``.pkl`` read by smplx itself, and the landmark ids it needs if its mesh is not SMPL's.
+
+    chumpy pickles (the official files) get a message saying how to convert them.
+    """
+    try:
+        smpl = _make_smpl(path, None, None, dtype)
+    except ImportError as error:
+        if "chumpy" in str(error):
+            raise InputError(
+                f"SMPL model {path}: stores chumpy arrays, which cannot be read on this Python; convert it "
+                f"once with multithumbs.body.model.convert_smpl_pickle('{path}', 'SMPL.npz') and use the .npz"
+            ) from None
+        raise InputError(f"SMPL model {path}: cannot be unpickled ({error})") from None
+    except Exception as error:  # pickle raises many types for a broken or foreign file
+        raise InputError(f"SMPL model {path}: not a readable SMPL pickle ({type(error).__name__}: {error})") from None
+    n = smpl.v_template.shape[0]
+    if smpl.J_regressor.shape != (NUM_JOINTS, n) or smpl.lbs_weights.shape != (n, NUM_JOINTS):
+        raise InputError(f"SMPL model {path}: not a 24-joint SMPL model")
+    if n == SMPL_NUM_VERTICES:
+        return smpl, None
+    # smplx's default landmark ids only fit SMPL's own mesh.
+    v_template, weights = smpl.v_template.double().numpy(), smpl.lbs_weights.double().numpy()
+    ids = landmark_vertex_ids(v_template, weights, smpl.J_regressor.double().numpy() @ v_template)
+    smpl.vertex_joint_selector = smplx.vertex_joint_selector.VertexJointSelector(vertex_ids=ids).to(dtype)
+    return smpl, ids
+
+
+__all__ = ["BodyModel", "BodyOutput", "MODEL_ENV_VAR", "SMPL_FOOT_VERTEX_IDS", "convert_smpl_pickle",
+           "landmark_vertex_ids", "load_body_model", "resolve_model_path"]
