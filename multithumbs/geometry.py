@@ -199,11 +199,12 @@ def transform_cameras(sim: Similarity, R: torch.Tensor, t: torch.Tensor) -> tupl
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals of meshes ``(..., V, 3)`` with faces ``(F, 3)`` (counter-clockwise out)."""
     flat = np.asarray(vertices, dtype=np.float64).reshape(-1, *np.shape(vertices)[-2:])
-    normals = np.zeros_like(flat)
+    v_count = flat.shape[1]
+    normals = np.empty_like(flat)
     for mesh, out in zip(flat, normals):
         tri = mesh[faces]
-        face_normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        for corner in range(3):
-            np.add.at(out, faces[:, corner], face_normals)
+        face_normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # length = 2 * area
+        for c in range(3):
+            out[:, c] = sum(np.bincount(faces[:, k], weights=face_normals[:, c], minlength=v_count) for k in range(3))
     normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-12)
     return normals.reshape(np.shape(vertices))

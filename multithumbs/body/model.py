@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import smplx
 import torch
-from smplx.lbs import vertices2joints
+from smplx.lbs import batch_rigid_transform, batch_rodrigues, vertices2joints
 from smplx.utils import Struct
 
 from multithumbs.body.procedural import procedural_model_path, write_npz
@@ -116,22 +116,16 @@ class BodyModel:
             np.array([self.vertex_ids[k] for k in ("LBigToe", "LHeel", "RBigToe", "RHeel")]))
         # Poses per smplx call: about VERTICES_PER_CALL vertices at a time.
         self.chunk_size = max(1, VERTICES_PER_CALL // self.num_vertices)
+        # Joint regression is linear in the betas: J(β) = J_template + J_shapedirs · β (for joints()).
+        regressor = smpl.J_regressor
+        self._joint_template = regressor @ smpl.v_template
+        self._joint_shapedirs = torch.einsum("jv,vck->jck", regressor, smpl.shapedirs)
 
     def __repr__(self) -> str:
         return f"BodyModel(source={self.source!r}, vertices={self.num_vertices}, dtype={self.dtype})"
 
-    def forward(self, global_orient, body_pose, betas, transl=None) -> BodyOutput:
-        """Pose the body. Numpy or torch inputs (cast to the model's dtype); torch outputs.
-
-        Args:
-            global_orient: ``(..., 3)`` axis-angle rotation of the body about the pelvis joint.
-            body_pose: ``(..., 23, 3)`` or ``(..., 69)`` axis-angle joint rotations (SMPL joints 1..23).
-            betas: ``(..., 10)`` shape, aligned with the leading batch dimensions (module docstring).
-            transl: ``(..., 3)`` translation added to every vertex and joint, or ``None``.
-        Returns:
-            vertices ``(*B, V, 3)`` and joints ``(*B, 24, 3)``, ``B`` the broadcast batch shape.
-            Differentiable with respect to every input.
-        """
+    def _flat_inputs(self, global_orient, body_pose, betas, transl):
+        """Check, broadcast (module docstring) and flatten the inputs: ``batch`` and ``(N, k)`` tensors."""
         orient = self._tensor("global_orient", global_orient, (3,))
         pose = self._tensor("body_pose", body_pose, None)
         if pose.shape[-2:] == (NUM_BODY_JOINTS, 3):
@@ -160,6 +154,21 @@ class BodyModel:
         flat = lambda x: x.expand(*batch, x.shape[-1]).reshape(-1, x.shape[-1])  # noqa: E731
         orient, pose, shape = flat(orient), flat(pose), flat(shape)
         shift = None if shift is None else flat(shift)
+        return batch, orient, pose, shape, shift
+
+    def forward(self, global_orient, body_pose, betas, transl=None) -> BodyOutput:
+        """Pose the body. Numpy or torch inputs (cast to the model's dtype); torch outputs.
+
+        Args:
+            global_orient: ``(..., 3)`` axis-angle rotation of the body about the pelvis joint.
+            body_pose: ``(..., 23, 3)`` or ``(..., 69)`` axis-angle joint rotations (SMPL joints 1..23).
+            betas: ``(..., 10)`` shape, aligned with the leading batch dimensions (module docstring).
+            transl: ``(..., 3)`` translation added to every vertex and joint, or ``None``.
+        Returns:
+            vertices ``(*B, V, 3)`` and joints ``(*B, 24, 3)``, ``B`` the broadcast batch shape.
+            Differentiable with respect to every input.
+        """
+        batch, orient, pose, shape, shift = self._flat_inputs(global_orient, body_pose, betas, transl)
         n = orient.shape[0]
         if n == 0:
             empty = lambda k: torch.zeros(*batch, k, 3, dtype=self.dtype)  # noqa: E731
@@ -175,6 +184,21 @@ class BodyModel:
         return BodyOutput(cat(vertices, self.num_vertices), cat(joints, NUM_JOINTS))
 
     __call__ = forward
+
+    def joints(self, global_orient, body_pose, betas, transl=None) -> torch.Tensor:
+        """``(*B, 24, 3)`` posed joints without the mesh: the same joints as :meth:`forward`, much faster.
+
+        SMPL's joints are regressed from the shaped template, which is linear in the betas, and then posed
+        by the kinematic chain; this evaluates exactly that with smplx's own ``batch_rigid_transform``,
+        skipping the skinning of every vertex. For optimisers that need joints only.
+        """
+        batch, orient, pose, shape, shift = self._flat_inputs(global_orient, body_pose, betas, transl)
+        rest = self._joint_template + torch.einsum("jck,nk->njc", self._joint_shapedirs, shape)
+        rotations = batch_rodrigues(torch.cat([orient, pose], dim=-1).reshape(-1, 3)).reshape(-1, NUM_JOINTS, 3, 3)
+        posed, _ = batch_rigid_transform(rotations, rest, self.smpl.parents, dtype=self.dtype)
+        if shift is not None:
+            posed = posed + shift[:, None]
+        return posed.reshape(*batch, NUM_JOINTS, 3)
 
     def rest_joints(self, betas) -> torch.Tensor:
         """``(..., 24, 3)`` joints of the shaped T-pose (zero pose, no translation) for ``betas (..., 10)``."""

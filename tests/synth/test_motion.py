@@ -1,0 +1,48 @@
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from multithumbs.synth.motion import BODY_TO_WORLD, MotionConfig, motion_to_smpl, simulate_walk
+
+
+def _walk(seed=0, frames=300, **kw):
+    rng = np.random.default_rng(seed)
+    return simulate_walk(np.zeros(2), [np.array([1.5, 0.5]), np.array([-1.0, 1.0])], frames, 30.0, rng, **kw)
+
+
+def test_walk_speed_and_turning_are_human():
+    m = _walk()
+    speed = np.linalg.norm(np.diff(m.position, axis=0), axis=1) * 30.0
+    assert speed.max() <= 1.8 + 1e-9
+    assert 0.3 < speed.mean() < 1.6
+    turn = np.abs(np.diff(np.unwrap(m.heading))) * 30.0
+    assert turn.max() <= MotionConfig().turn_rate + 1e-9
+    # It reaches the first waypoint.
+    assert np.linalg.norm(m.position - [1.5, 0.5], axis=1).min() < 0.2
+
+
+def test_walk_is_reproducible_from_seed():
+    a, b, c = _walk(3), _walk(3), _walk(4)
+    np.testing.assert_array_equal(a.position, b.position)
+    assert not np.allclose(a.position, c.position)
+
+
+def test_pauses_stop_the_legs():
+    m = _walk(seed=1, frames=900, config=MotionConfig(stand_probability=1.0))
+    still = np.linalg.norm(np.diff(m.position, axis=0), axis=1) == 0
+    assert still.any()
+    assert m.gait_amount[1:][still].min() == 0.0  # legs settle during a pause
+    assert np.all(m.gait_amount[1:][~still] > 0.0)
+
+
+def test_smpl_pose_is_upright_and_faces_heading():
+    m = _walk(frames=60)
+    orient, pose = motion_to_smpl(m)
+    assert orient.shape == (60, 3) and pose.shape == (60, 23, 3)
+    R = Rotation.from_rotvec(orient).as_matrix()
+    np.testing.assert_allclose(R[:, :, 1], np.tile([0, 0, 1.0], (60, 1)), atol=1e-9)  # body up = world up
+    forward = R[:, :2, 2]  # body +z in the world
+    np.testing.assert_allclose(forward, np.stack([np.cos(m.heading), np.sin(m.heading)], 1), atol=1e-9)
+    np.testing.assert_allclose(BODY_TO_WORLD @ BODY_TO_WORLD.T, np.eye(3))
+    # Walking swings the legs in opposition.
+    hips = np.abs(pose[:, [0, 1], 0]).max(axis=0)
+    assert np.all(hips > np.deg2rad(10))
