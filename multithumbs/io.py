@@ -35,6 +35,15 @@ def _world_to_arrays(world: WorldResult) -> dict[str, np.ndarray]:
     return arrays
 
 
+def publish(tmp: str | Path, path: str | Path) -> Path:
+    """Move a finished temporary file onto ``path`` atomically, with the usual permissions (0666 & ~umask)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
+    os.replace(tmp, path)
+    return Path(path)
+
+
 def save_npz_atomic(path: str | Path, arrays: dict[str, Any], compress: bool = True) -> Path:
     """Write ``arrays`` to ``path`` through a temporary file in the same folder and an atomic rename."""
     path = Path(path)
@@ -44,7 +53,7 @@ def save_npz_atomic(path: str | Path, arrays: dict[str, Any], compress: bool = T
     try:
         with os.fdopen(fd, "wb") as fh:
             (np.savez_compressed if compress else np.savez)(fh, **arrays)
-        os.replace(tmp, path)
+        publish(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

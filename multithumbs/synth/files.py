@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 from multithumbs.errors import InputError
-from multithumbs.io import save_ground_truth
+from multithumbs.io import publish, save_ground_truth
 from multithumbs.synth.scene import SyntheticVideo
 
 OUTPUT_NAMES = ("video.mp4", "ground_truth.npz", "contact_sheet.png")
@@ -29,7 +29,7 @@ def write_video(path: str | Path, frames: np.ndarray, fps: float) -> Path:
         for frame in frames:
             writer.write(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
         writer.release()
-        os.replace(tmp, path)
+        publish(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -44,7 +44,7 @@ def write_image(path: str | Path, rgb: np.ndarray) -> Path:
     try:
         if not cv2.imwrite(tmp, cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
             raise InputError(f"{path}: could not encode the image")
-        os.replace(tmp, path)
+        publish(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
