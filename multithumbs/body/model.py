@@ -211,7 +211,11 @@ class BodyModel:
         """``value`` as a tensor of the model's dtype with trailing dimensions ``trailing`` (checked)."""
         if value is None:
             raise InputError(f"{name}: required, got None")
-        tensor = torch.as_tensor(np.asarray(value) if not torch.is_tensor(value) else value)
+        if not torch.is_tensor(value):
+            value = np.asarray(value)
+            if not value.flags.writeable:  # torch cannot wrap read-only memory (broadcast views)
+                value = value.copy()
+        tensor = torch.as_tensor(value)
         if not (tensor.is_floating_point() or tensor.dtype in (torch.int32, torch.int64)):
             raise InputError(f"{name}: expected real numbers, got dtype {tensor.dtype}")
         if trailing is not None and (tensor.ndim < len(trailing) or tuple(tensor.shape[-len(trailing):]) != trailing):

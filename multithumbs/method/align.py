@@ -29,7 +29,7 @@ from scipy import ndimage
 
 from multithumbs.geometry import (axis_angle_to_matrix, camera_centre, matrix_to_axis_angle, project,
                                   vertex_normals, world_to_camera)
-from multithumbs.method.scale import mesh_to_points_scale
+from multithumbs.method.scale import depth_ratio_scale, mesh_to_points_scale
 from multithumbs.types import SharedSpace
 
 
@@ -52,6 +52,9 @@ class AlignConfig:
         keypoint_confidence: 2D keypoints below this confidence are ignored.
         max_vertices: vertices per body used by the silhouette and depth losses (an even subsample).
         min_person_points: fewest scene points in a mask for a person to count in the scale estimate.
+        scale_method: ``"depth_ratio"`` (default: mesh over scene depth at the visible vertices' pixels) or
+            ``"max_radius"`` (the paper's ratio of maximum centroid-to-vertex distances); both compare a
+            mesh's size with its point cloud's, see :mod:`multithumbs.method.scale`.
     """
 
     iterations: tuple[int, int, int] = (500, 500, 1500)
@@ -66,6 +69,7 @@ class AlignConfig:
     keypoint_confidence: float = 0.3
     max_vertices: int = 800
     min_person_points: int = 20
+    scale_method: str = "depth_ratio"
 
 
 @dataclass(frozen=True)
@@ -161,28 +165,47 @@ def _root_pixel(keypoints: np.ndarray, min_conf: float) -> np.ndarray | None:
     return None
 
 
-def _visible_vertices_cam(local_vertices: np.ndarray, orient_cam: np.ndarray, pelvis_cam: np.ndarray,
-                          K: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Camera-frame vertices of the estimator's mesh that project inside the person's mask."""
-    verts = local_vertices @ axis_angle_to_matrix(orient_cam).T + pelvis_cam
+def _visible_vertices_cam(local_vertices: np.ndarray, local_normals: np.ndarray, orient_cam: np.ndarray,
+                          pelvis_cam: np.ndarray, K: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Camera-frame vertices of the estimator's mesh that face the camera and project inside the mask.
+
+    These are the vertices whose surface the person's point cloud samples, so their spread is comparable.
+    """
+    rot = axis_angle_to_matrix(orient_cam)
+    verts = local_vertices @ rot.T + pelvis_cam
+    facing = ((local_normals @ rot.T) * verts).sum(-1) < 0
     uv = np.round(project(verts, K)).astype(int)
     h, w = mask.shape
-    inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+    inside = facing & (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
     inside[inside] = mask[uv[inside, 1], uv[inside, 0]]
     return verts[inside]
 
 
 def estimate_space_scale(people: BoundaryPeople, space: SharedSpace, maps: np.ndarray, valid: np.ndarray,
-                         min_points: int) -> float:
+                         min_points: int, method: str = "depth_ratio") -> float:
     """Mesh-to-space scale at a cut (nan when no person has enough points)."""
-    meshes, clouds = [], []
+    if method not in ("depth_ratio", "max_radius"):
+        raise ValueError(f"scale_method {method!r}: use 'depth_ratio' or 'max_radius'")
+    first, second = [], []
+    normals = vertex_normals(people.local_vertices, people.faces)
+    h, w = valid.shape[1:]
     for k in range(2):
         for p in np.nonzero(people.present[k])[0]:
             mask = people.masks[k, p]
-            clouds.append(maps[k][mask & valid[k]])
-            meshes.append(_visible_vertices_cam(people.local_vertices[k, p], people.orient_cam[k, p],
-                                                people.pelvis_cam[k, p], space.K[k], mask))
-    return mesh_to_points_scale(meshes, clouds, min_points)
+            verts = _visible_vertices_cam(people.local_vertices[k, p], normals[k, p], people.orient_cam[k, p],
+                                          people.pelvis_cam[k, p], space.K[k], mask)
+            if method == "max_radius":
+                first.append(verts)
+                second.append(maps[k][mask & valid[k]])
+                continue
+            uv = np.round(project(verts, space.K[k])).astype(int)
+            ok = valid[k][uv[:, 1], uv[:, 0]] if len(uv) else np.zeros(0, bool)
+            points = maps[k][uv[ok, 1], uv[ok, 0]]
+            first.append(verts[ok, 2])
+            second.append((points @ space.R[k].T + space.t[k])[:, 2])
+    if method == "max_radius":
+        return mesh_to_points_scale(first, second, min_points)
+    return depth_ratio_scale(first, second, min_points)
 
 
 def _camera_frame_roots(people: BoundaryPeople, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -197,7 +220,7 @@ def align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignConf
                    skip: bool = False) -> AlignedBoundary:
     """Place the boundary people of one cut in its shared space (``skip=True``: the ``no_align`` ablation)."""
     maps, valid = point_maps(space)
-    scale = estimate_space_scale(people, space, maps, valid, config.min_person_points)
+    scale = estimate_space_scale(people, space, maps, valid, config.min_person_points, config.scale_method)
     s = scale if np.isfinite(scale) and scale > 0 else 1.0
     maps = maps * s
     R0, t0 = space.R.astype(np.float64), space.t.astype(np.float64) * s

@@ -44,3 +44,22 @@ def mesh_to_points_scale(mesh_vertices: list[np.ndarray], person_points: list[np
         if radius > 0:
             ratios.append(max_radius(verts) / radius)
     return float(np.mean(ratios)) if ratios else float("nan")
+
+
+def depth_ratio_scale(mesh_depths: list[np.ndarray], point_depths: list[np.ndarray], min_points: int = 20) -> float:
+    """Mesh-to-points factor from per-pixel depths: per person the median of mesh depth / point depth, averaged.
+
+    The same quantity as :func:`mesh_to_points_scale` — a mesh that fits a person's mask has its size in
+    the ratio of its depth — but measured pixel by pixel on the visible surface, so partial visibility
+    does not bias it (exact on noise-free input, where the max-radius ratio scatters by ±15%).
+
+    Args:
+        mesh_depths: per (person, frame) camera depths of mesh vertices facing the camera inside the mask.
+        point_depths: the shared space's depth at the same vertices' pixels (its own units).
+    """
+    ratios = []
+    for zm, zp in zip(mesh_depths, point_depths):
+        ok = (zp > 0) & (zm > 0)
+        if ok.sum() >= min_points:
+            ratios.append(float(np.median(zm[ok] / zp[ok])))
+    return float(np.mean(ratios)) if ratios else float("nan")
