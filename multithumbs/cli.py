@@ -124,6 +124,46 @@ def evaluate_cmd(
     Console().print(table)
 
 
+@app.command("bench")
+def bench_cmd(
+    suite_name: str = typer.Option("standard", "--suite", help="Named synthetic suite."),
+    variants: Optional[str] = typer.Option(None, "--variants", help="Comma-separated variants (default: all)."),
+    scenes: Optional[str] = typer.Option(None, "--scenes", help="Comma-separated scene names (default: all)."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Worker processes (default: one per core)."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON keyed by variant, then metric."),
+) -> None:
+    """Run a synthetic suite with the full method, each ablation and each baseline; print the metrics."""
+    import time
+
+    from multithumbs.bench import BACKENDS, METRIC_KEYS, check_variants, run_suite, summarize
+    from multithumbs.pipeline import VARIANTS
+    from multithumbs.synth.suite import suite, suite_scene
+
+    names = check_variants(variants.split(",")) if variants else list(VARIANTS)
+    configs = [suite_scene(suite_name, n) for n in scenes.split(",")] if scenes else list(suite(suite_name))
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers: need at least 1, got {workers}")
+    start = time.perf_counter()
+    with _progress() as bar:
+        task = bar.add_task(f"suite {suite_name}", total=len(configs))
+        results = run_suite(configs, names, workers, progress=lambda s, done, total: bar.update(task, completed=done))
+    summary = summarize(results, names)
+    elapsed = time.perf_counter() - start
+    if as_json:
+        print(json.dumps(_jsonable({**summary, "_meta": {"suite": suite_name, "scenes": [c.name for c in configs],
+                                                          "seconds": elapsed, "backends": BACKENDS}}),
+                         indent=1, sort_keys=True))
+        return
+    table = Table(title=f"suite {suite_name}: {len(configs)} scenes, {elapsed:.0f} s (backends: "
+                  + ", ".join(f"{k} {v}" for k, v in BACKENDS.items()) + ")")
+    table.add_column("variant")
+    for key in METRIC_KEYS:
+        table.add_column(key, justify="right")
+    for v in names:
+        table.add_row(v, *(f"{summary[v][k]['mean']:.3g}" for k in METRIC_KEYS))
+    Console().print(table)
+
+
 def _jsonable(value):
     if isinstance(value, dict):
         return {str(k): _jsonable(v) for k, v in value.items()}

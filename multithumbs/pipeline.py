@@ -405,20 +405,22 @@ def sanitize_tracks(tracks: PersonTracks) -> PersonTracks:
     return PersonTracks(**arrays)
 
 
-def run_video(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequence[CameraTrajectory],
-              spaces: Sequence[SharedSpace], body, config: MethodConfig = MethodConfig()) -> WorldResult:
-    """The whole method in plain Python (module docstring lists the stages)."""
-    tracks = [sanitize_tracks(tr) for tr in tracks]
-    check_inputs(shots, tracks, trajectories, spaces)
+def align_cuts(shots: Shots, tracks: Sequence[PersonTracks], spaces: Sequence[SharedSpace], body,
+               config: MethodConfig = MethodConfig()) -> list[AlignedBoundary]:
+    """Stages 1-2 for every cut (nothing for the ``independent_shots`` baseline)."""
+    if config.independent_shots:
+        return []
+    return [align_boundary(boundary_people(tracks[c], tracks[c + 1], body), space, config.align,
+                           skip=config.skip_align) for c, space in enumerate(spaces)]
+
+
+def finish_video(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequence[CameraTrajectory],
+                 aligned: Sequence[AlignedBoundary], body, config: MethodConfig = MethodConfig()) -> WorldResult:
+    """Stages 3-6: propagation, re-identification, assembly, post-processing, the result."""
     diagnostics: dict[str, np.ndarray] = {}
-    aligned: list[AlignedBoundary] = []
-    if not config.independent_shots:
-        for c, space in enumerate(spaces):
-            people = boundary_people(tracks[c], tracks[c + 1], body)
-            result = align_boundary(people, space, config.align, skip=config.skip_align)
-            aligned.append(result)
-            diagnostics[f"align_loss_cut{c}"] = result.losses
-            diagnostics[f"space_scale_cut{c}"] = np.float64(result.scale)
+    for c, result in enumerate(aligned):
+        diagnostics[f"align_loss_cut{c}"] = result.losses
+        diagnostics[f"space_scale_cut{c}"] = np.float64(result.scale)
     placement = propagate(shots, tracks, trajectories, aligned, body, independent=config.independent_shots)
     diagnostics["trajectory_scales"] = placement.trajectory_scales
     ids = reidentify(tracks, placement, config.reid, config.appearance_window)
@@ -434,3 +436,19 @@ def run_video(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequen
                                     betas=out.betas, transl=out.transl)
         diagnostics["post_loss"] = out.losses
     return to_world_result(shots, tracks, world, ids, diagnostics)
+
+
+def prepare_inputs(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequence[CameraTrajectory],
+                   spaces: Sequence[SharedSpace]) -> list[PersonTracks]:
+    """Drop empty tracks and check that the inputs fit the shots (:class:`InputError` otherwise)."""
+    tracks = [sanitize_tracks(tr) for tr in tracks]
+    check_inputs(shots, tracks, trajectories, spaces)
+    return tracks
+
+
+def run_video(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequence[CameraTrajectory],
+              spaces: Sequence[SharedSpace], body, config: MethodConfig = MethodConfig()) -> WorldResult:
+    """The whole method in plain Python (module docstring lists the stages)."""
+    tracks = prepare_inputs(shots, tracks, trajectories, spaces)
+    aligned = align_cuts(shots, tracks, spaces, body, config)
+    return finish_video(shots, tracks, trajectories, aligned, body, config)

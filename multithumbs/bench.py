@@ -1,0 +1,150 @@
+"""The synthetic benchmark: every scene of a suite through the full method, its ablations and baselines.
+
+Per scene: synthesise, simulate perception, the shared space at each cut and each shot's camera
+tracking (SIMULATED backends, labelled so in the report), then run every variant — sharing what they
+have in common: one alignment per distinct alignment setting, one propagation and re-identification per
+distinct setting — and score each with :func:`multithumbs.metrics.evaluate.evaluate`. Scenes run in
+parallel worker processes.
+
+Aggregation over scenes: pose errors (W-MPJPE, WA-MPJPE, MPJPE, PA-MPJPE, MPVPE, Accel) are frame-weighted
+means over scored frames (METRICS.md); ATE, IDs, PCK*, Jitter and FS are means over scenes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+
+from multithumbs.errors import InputError
+from multithumbs.pipeline import VARIANTS, MethodConfig, align_cuts, finish_video, prepare_inputs, variant_config
+from multithumbs.synth.scene import SceneConfig
+
+METRIC_KEYS = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "ate", "ids", "pck", "jitter", "fs")
+FRAME_WEIGHTED = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel")
+BACKENDS = {"perception": "simulated", "shared_space": "simulated (stands in for VGGT)",
+            "camera_tracking": "simulated (stands in for DROID-SLAM)", "shots": "ground truth cuts"}
+
+
+@dataclass(frozen=True)
+class SceneScores:
+    """Metrics of every variant on one scene.
+
+    Attributes:
+        scene: scene name.
+        metrics: variant -> metric name -> value (plus ``scored_frames`` and ``coverage``).
+        seconds: variant -> wall time of its own stages (shared stages counted where first run).
+    """
+
+    scene: str
+    metrics: dict[str, dict[str, float]]
+    seconds: dict[str, float]
+
+
+def _alignment_key(config: MethodConfig) -> tuple:
+    return (config.independent_shots, config.skip_align, config.align)
+
+
+def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: MethodConfig = MethodConfig(),
+              seed: int = 0) -> SceneScores:
+    """Synthesise one scene, run the variants on shared stages, score them."""
+    import time
+
+    from multithumbs.body.model import load_body_model
+    from multithumbs.metrics.evaluate import evaluate
+    from multithumbs.synth.perception import simulate_perception
+    from multithumbs.synth.scene import synthesize
+    from multithumbs.synth.simulated_geometry import simulate_camera_trajectory, simulate_shared_space
+
+    body = load_body_model()
+    video = synthesize(config, body)
+    shots = video.truth.world.shots()
+    tracks = simulate_perception(video, body, seed=seed)
+    spaces = [simulate_shared_space(video, c, seed=seed) for c in range(len(shots.cut_frames))]
+    trajectories = [simulate_camera_trajectory(video, k, seed=seed) for k in range(shots.num_shots)]
+    tracks = prepare_inputs(shots, tracks, trajectories, spaces)
+    aligned_cache: dict[tuple, list] = {}
+    metrics, seconds = {}, {}
+    for name in variants:
+        cfg = variant_config(name, base)
+        start = time.perf_counter()
+        key = _alignment_key(cfg)
+        if key not in aligned_cache:
+            aligned_cache[key] = align_cuts(shots, tracks, spaces, body, cfg)
+        result = finish_video(shots, tracks, trajectories, aligned_cache[key], body, cfg)
+        seconds[name] = time.perf_counter() - start
+        scores = evaluate(result, video.truth, body)
+        metrics[name] = {k: _float(scores.get(k)) for k in (*METRIC_KEYS, "scored_frames", "coverage")}
+    return SceneScores(config.name, metrics, seconds)
+
+
+def _float(value) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def _init_worker(threads: int) -> None:
+    import torch
+
+    torch.set_num_threads(threads)
+
+
+def run_suite(configs: Sequence[SceneConfig], variants: Sequence[str] = VARIANTS, workers: int | None = None,
+              base: MethodConfig = MethodConfig(),
+              progress: Callable[[SceneScores, int, int], None] | None = None) -> list[SceneScores]:
+    """Run every scene (in ``workers`` processes; default: one per core) and return their scores in order."""
+    for v in variants:
+        variant_config(v)  # unknown names fail before any work
+    workers = workers or max(1, min(len(configs), os.cpu_count() or 1))
+    if workers == 1:
+        out = []
+        for i, c in enumerate(configs):
+            out.append(run_scene(c, variants, base))
+            if progress:
+                progress(out[-1], i + 1, len(configs))
+        return out
+    results: dict[str, SceneScores] = {}
+    # One torch thread per worker: the optimisations are small-op bound, processes scale better.
+    with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=(1,)) as pool:
+        futures = {pool.submit(run_scene, c, variants, base): c.name for c in configs}
+        for done, future in enumerate(as_completed(futures), 1):
+            scores = future.result()
+            results[scores.scene] = scores
+            if progress:
+                progress(scores, done, len(configs))
+    return [results[c.name] for c in configs]
+
+
+def summarize(scenes: Sequence[SceneScores], variants: Sequence[str] = VARIANTS) -> dict:
+    """variant -> metric -> ``{"per_scene": {scene: value}, "mean": value}`` (module docstring: aggregation)."""
+    out: dict = {}
+    for v in variants:
+        out[v] = {}
+        for key in METRIC_KEYS:
+            per_scene = {s.scene: s.metrics[v][key] for s in scenes}
+            values = np.array(list(per_scene.values()), dtype=float)
+            if key in FRAME_WEIGHTED:
+                weights = np.array([s.metrics[v]["scored_frames"] for s in scenes], dtype=float)
+                ok = np.isfinite(values) & (weights > 0)
+                mean = float((values[ok] * weights[ok]).sum() / weights[ok].sum()) if ok.any() else math.nan
+            else:
+                ok = np.isfinite(values)
+                mean = float(values[ok].mean()) if ok.any() else math.nan
+            out[v][key] = {"per_scene": per_scene, "mean": mean}
+        out[v]["seconds"] = {s.scene: s.seconds[v] for s in scenes}
+    return out
+
+
+def check_variants(names: Sequence[str]) -> list[str]:
+    """Validate variant names for the CLI."""
+    unknown = [n for n in names if n not in VARIANTS]
+    if unknown:
+        raise InputError(f"--variants: unknown {unknown[0]!r}; choose from {', '.join(VARIANTS)}")
+    return list(names)
