@@ -52,6 +52,8 @@ class AlignConfig:
         keypoint_confidence: 2D keypoints below this confidence are ignored.
         max_vertices: vertices per body used by the silhouette and depth losses (an even subsample).
         min_person_points: fewest scene points in a mask for a person to count in the scale estimate.
+        depth_robust_scale: Geman-McClure scale (m) of the depth residual: vertices hidden behind another
+            part of the same body (whose pixel shows that part) are outliers, not targets; 0 = plain squares.
         scale_method: ``"depth_ratio"`` (default: mesh over scene depth at the visible vertices' pixels) or
             ``"max_radius"`` (the paper's ratio of maximum centroid-to-vertex distances); both compare a
             mesh's size with its point cloud's, see :mod:`multithumbs.method.scale`.
@@ -69,6 +71,7 @@ class AlignConfig:
     keypoint_confidence: float = 0.3
     max_vertices: int = 800
     min_person_points: int = 20
+    depth_robust_scale: float = 0.05
     scale_method: str = "depth_ratio"
 
 
@@ -350,6 +353,9 @@ class _Problem:
         in_mask &= self.present[..., None]
         target = self.point_map[frame, vi, ui]
         d2 = (verts - target).pow(2).sum(-1)
+        if cfg.depth_robust_scale > 0:  # Geman-McClure, in m²: quadratic near 0, flat for outliers
+            sigma2 = cfg.depth_robust_scale ** 2
+            d2 = sigma2 * d2 / (d2 + sigma2)
         loss_depth = (d2 * in_mask).sum() / in_mask.sum().clamp(min=1)
         return cfg.w2d_stage3 * loss2d + cfg.w_sil * loss_sil + cfg.w_depth * loss_depth
 

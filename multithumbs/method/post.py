@@ -2,9 +2,10 @@
 
 Minimises over every person's world SMPL parameters (orientation, translation, body pose, shape)
 
-    λsmooth (Σ‖J_t − J_{t+1}‖² + wβ‖β‖² + wθ‖θ − θ̂‖²) + λcross L_cross + λ2D L_2D + λroot ‖Γ − Γ̂‖²
+    λsmooth (Σ‖ΔJ‖² + wβ‖β‖² + wθ‖θ − θ̂‖²) + λcross L_cross + λ2D L_2D + λroot ‖Γ − Γ̂‖²
 
-* ``J`` are world joints; consecutive pairs count within a shot and across a cut for a person matched
+* ``J`` are world joints and ``Δ`` their first (the paper) or second difference in time (default, see
+  :class:`PostConfig`); windows count within a shot and across a cut for a person matched
   across it (that is where continuity matters).
 * VPoser's latent prior ``‖ζ‖²`` needs licensed weights; the documented substitute is a Gaussian prior
   on the deviation of the pose from its per-frame estimate θ̂ (``pose_prior="gaussian"``).
@@ -44,6 +45,9 @@ class PostConfig:
         w_pose_prior: weight of the pose prior inside the smoothness term.
         pose_prior: ``"gaussian"`` (substitute, default) or ``"vposer"`` (needs ``vposer`` in :func:`post_process`).
         keypoint_confidence: keypoints below it are ignored.
+        smooth_order: 1 penalises joint velocity ``‖J_t − J_{t+1}‖²`` (the paper's term); 2 penalises
+            acceleration ``‖J_{t−1} − 2J_t + J_{t+1}‖²``, which leaves steady walking and the ends of a
+            track alone (first differences pull a track's ends inwards and slow every walk).
     """
 
     iterations: int = 300
@@ -52,10 +56,11 @@ class PostConfig:
     w_cross: float = 1.0
     w_2d: float = 10.0
     w_root: float = 1.0
-    w_shape: float = 0.001
+    w_shape: float = 1e-5
     w_pose_prior: float = 0.01
     pose_prior: str = "gaussian"
     keypoint_confidence: float = 0.3
+    smooth_order: int = 2
 
 
 @dataclass(frozen=True)
@@ -97,12 +102,19 @@ class PostOutput:
     losses: np.ndarray
 
 
-def _pairs(valid: np.ndarray, cut_frames: np.ndarray, matched_at_cut: np.ndarray) -> np.ndarray:
-    """``(P, T-1)`` bool: the pair (t, t+1) is scored for smoothness."""
-    both = valid[:, :-1] & valid[:, 1:]
+def _windows(valid: np.ndarray, cut_frames: np.ndarray, matched_at_cut: np.ndarray, order: int) -> np.ndarray:
+    """``(P, T-order)`` bool: the window ``t .. t+order`` is scored for smoothness.
+
+    A window may span a cut only for a person matched across it.
+    """
+    t_count = valid.shape[1]
+    ok = np.ones((valid.shape[0], t_count - order), bool)
+    for k in range(order + 1):
+        ok &= valid[:, k:t_count - order + k]
     for c, cut in enumerate(cut_frames):
-        both[:, cut - 1] &= matched_at_cut[:, c]
-    return both
+        for start in range(max(0, cut - order), min(cut, t_count - order)):
+            ok[:, start] &= matched_at_cut[:, c]
+    return ok
 
 
 def post_process(data: PostInput, body, config: PostConfig = PostConfig(), vposer=None) -> PostOutput:
@@ -114,7 +126,9 @@ def post_process(data: PostInput, body, config: PostConfig = PostConfig(), vpose
         return PostOutput(data.global_orient, data.body_pose, data.betas, data.transl, np.zeros(0))
     as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float64)
     valid = torch.as_tensor(data.valid)
-    pairs = torch.as_tensor(_pairs(data.valid, data.cut_frames, data.matched_at_cut))
+    if config.smooth_order not in (1, 2):
+        raise ValueError(f"smooth_order must be 1 or 2, got {config.smooth_order}")
+    windows = torch.as_tensor(_windows(data.valid, data.cut_frames, data.matched_at_cut, config.smooth_order))
     norm = 0.5 * max(data.image_size)
     K, R, t = as_t(data.K), as_t(data.R), as_t(data.t)
     kp = as_t(data.keypoints)
@@ -134,8 +148,10 @@ def post_process(data: PostInput, body, config: PostConfig = PostConfig(), vpose
     for _ in range(config.iterations):
         opt.zero_grad(set_to_none=True)
         joints = body.joints(orient, body_pose, betas, transl).double()         # (P, T, 24, 3)
-        diff = (joints[:, 1:] - joints[:, :-1]).pow(2).sum(-1).mean(-1)
-        smooth = (diff * pairs).sum() / pairs.sum().clamp(min=1)
+        diff = joints[:, 1:] - joints[:, :-1]
+        if config.smooth_order == 2:
+            diff = diff[:, 1:] - diff[:, :-1]
+        smooth = (diff.pow(2).sum(-1).mean(-1) * windows).sum() / windows.sum().clamp(min=1)
         pose_dev = ((body_pose - pose0).pow(2).sum((-1, -2)) * vmask).sum() / vmask.sum().clamp(min=1)
         prior = config.w_shape * betas.pow(2).sum(-1).mean() + config.w_pose_prior * pose_dev
         uv = project(world_to_camera(joints, R, t), K)
