@@ -385,7 +385,7 @@ def check_inputs(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Seq
             arr = getattr(tr, name)
             bad = ~np.isfinite(arr)
             if name in ("global_orient", "transl", "keypoints2d", "body_pose"):
-                bad = bad.reshape(*arr.shape[:2], -1).any(-1) & tr.valid
+                bad = bad.reshape(*arr.shape[:2], int(np.prod(arr.shape[2:]))).any(-1) & tr.valid
             if bad.any():
                 raise InputError(f"shot {k}: PersonTracks.{name} has non-finite values in valid frames")
     for c, (space, cut) in enumerate(zip(spaces, shots.cut_frames)):
