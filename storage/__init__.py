@@ -1,0 +1,1 @@
+"""Content-addressed artifacts (DESIGN §5). Imports no Prefect; ``multithumbs`` does not import this."""
