@@ -58,9 +58,12 @@ def _checksum(array: np.ndarray) -> str:
 class ArtifactStore:
     """Content-addressed zarr store rooted at a local path or fsspec URL."""
 
-    def __init__(self, url: str | Path):
+    def __init__(self, url: str | Path, **storage_options: Any):
+        """Open (creating folders as needed) the store at ``url``; ``storage_options`` go to fsspec
+        (e.g. ``client_kwargs={"endpoint_url": ...}`` for an S3-compatible server)."""
         self.url = str(url)
-        self.fs, self.root = fsspec.core.url_to_fs(self.url)
+        self.storage_options = storage_options
+        self.fs, self.root = fsspec.core.url_to_fs(self.url, **storage_options)
         self.local = isinstance(self.fs, fsspec.implementations.local.LocalFileSystem)
         if self.local:
             self.root = os.path.abspath(self.root)
@@ -77,16 +80,29 @@ class ArtifactStore:
     def _zarr_store(self, path: str, read_only: bool):
         if self.local:
             return zarr.storage.LocalStore(path, read_only=read_only)
-        return zarr.storage.FsspecStore(self.fs, path=path, read_only=read_only)
+        # zarr drives its own event loop: give it its own filesystem instance built from the URL.
+        protocol = self.fs.protocol if isinstance(self.fs.protocol, str) else self.fs.protocol[0]
+        return zarr.storage.FsspecStore.from_url(f"{protocol}://{path}", storage_options=self.storage_options,
+                                                 read_only=read_only)
 
     # queries -----------------------------------------------------------------------------------
+    def _fresh(self) -> None:
+        """Object-store listings are cached by fsspec; other processes write too."""
+        if not self.local:
+            self.fs.invalidate_cache()
+
     def exists(self, key: str) -> bool:
         """Whether ``key`` is committed (its index record exists)."""
+        self._fresh()
         return self.fs.exists(self._index_path(key))
 
     def keys(self) -> list[str]:
         """Committed keys."""
-        names = [Path(p).name for p in self.fs.ls(f"{self.root}/index", detail=False)]
+        self._fresh()
+        try:
+            names = [Path(p).name for p in self.fs.ls(f"{self.root}/index", detail=False)]
+        except FileNotFoundError:  # object stores have no empty folders
+            return []
         return sorted(n[:-5] for n in names if n.endswith(".json") and is_key(n[:-5]))
 
     def record(self, key: str) -> dict[str, Any]:
@@ -188,7 +204,11 @@ class ArtifactStore:
             for key in removed:
                 self.delete(key)
             committed = set(self.keys())
-            for path in self.fs.ls(f"{self.root}/artifacts", detail=False):
+            try:
+                leftovers = self.fs.ls(f"{self.root}/artifacts", detail=False)
+            except FileNotFoundError:
+                leftovers = []
+            for path in leftovers:
                 if Path(path).name not in committed:
                     self.fs.rm(path, recursive=True)
                     removed.append(Path(path).name)
