@@ -1,0 +1,60 @@
+"""Codecs between the data contracts (:mod:`multithumbs.types` and the method's outputs) and artifacts.
+
+A frozen dataclass becomes arrays (its numpy fields; dict-of-array fields nested as ``field/name``) and
+JSON attributes (everything else, with the class name), and back. One generic codec serves every
+contract, so a new field needs no codec change.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from multithumbs.method.align import AlignedBoundary
+from multithumbs.types import CameraTrajectory, GroundTruth, PersonTracks, SharedSpace, Shots, WorldResult
+
+CONTRACTS: dict[str, type] = {cls.__name__: cls for cls in
+                              (Shots, PersonTracks, CameraTrajectory, SharedSpace, WorldResult, AlignedBoundary)}
+
+
+def encode(obj: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """``(arrays, attributes)`` of a contract instance."""
+    name = type(obj).__name__
+    if name not in CONTRACTS:
+        raise TypeError(f"no codec for {name}; known: {', '.join(sorted(CONTRACTS))}")
+    arrays: dict[str, np.ndarray] = {}
+    fields: dict[str, Any] = {}
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        if isinstance(value, np.ndarray):
+            arrays[f.name] = value
+        elif isinstance(value, dict) and all(isinstance(v, np.ndarray) or np.isscalar(v) for v in value.values()):
+            for k, v in value.items():
+                arrays[f"{f.name}/{k}"] = np.asarray(v)
+            fields[f.name] = {"__arrays__": sorted(value)}
+        elif isinstance(value, tuple):
+            fields[f.name] = {"__tuple__": list(value)}
+        elif isinstance(value, (np.floating, np.integer)):
+            fields[f.name] = value.item()
+        else:
+            fields[f.name] = value
+    return arrays, {"contract": name, "fields": fields}
+
+
+def decode(arrays: dict[str, np.ndarray], attributes: dict[str, Any]) -> Any:
+    """Inverse of :func:`encode`."""
+    cls = CONTRACTS[attributes["contract"]]
+    kwargs: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        if f.name in arrays:
+            kwargs[f.name] = arrays[f.name]
+        elif f.name in attributes["fields"]:
+            value = attributes["fields"][f.name]
+            if isinstance(value, dict) and "__arrays__" in value:
+                value = {k: arrays[f"{f.name}/{k}"] for k in value["__arrays__"]}
+            elif isinstance(value, dict) and "__tuple__" in value:
+                value = tuple(value["__tuple__"])
+            kwargs[f.name] = value
+    return cls(**kwargs)
