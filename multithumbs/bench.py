@@ -12,7 +12,6 @@ means over scored frames (METRICS.md); ATE, IDs, PCK*, Jitter and FS are means o
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from concurrent.futures import ProcessPoolExecutor, as_completed

@@ -183,7 +183,7 @@ def main() -> None:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
-    except (typer.Exit, SystemExit) as exc:
+    except (typer.Exit, SystemExit):
         raise
     except Exception as exc:  # click's usage errors
         import click

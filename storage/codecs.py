@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from multithumbs.method.align import AlignedBoundary
-from multithumbs.types import CameraTrajectory, GroundTruth, PersonTracks, SharedSpace, Shots, WorldResult
+from multithumbs.types import CameraTrajectory, PersonTracks, SharedSpace, Shots, WorldResult
 
 CONTRACTS: dict[str, type] = {cls.__name__: cls for cls in
                               (Shots, PersonTracks, CameraTrajectory, SharedSpace, WorldResult, AlignedBoundary)}

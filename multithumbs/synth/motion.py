@@ -147,7 +147,7 @@ def motion_to_smpl(motion: PersonMotion) -> tuple[np.ndarray, np.ndarray]:
     t_count = motion.heading.shape[0]
     phase, amount = motion.gait_phase, motion.gait_amount
     pose = np.tile(np.eye(3), (t_count, 23, 1, 1))
-    sin, cos = np.sin(phase), np.cos(phase)
+    sin = np.sin(phase)
     for side, sgn in (("left", 1.0), ("right", -1.0)):
         s = sgn * sin
         # Negative rotation about +x swings a leg forward (+z) in SMPL's body frame.

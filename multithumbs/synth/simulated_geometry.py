@@ -16,8 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from multithumbs.geometry import (Similarity, axis_angle_to_matrix, camera_centre, transform_cameras, unproject,
-                                  world_to_camera)
+from multithumbs.geometry import (Similarity, axis_angle_to_matrix, camera_centre, transform_cameras, unproject)
 from multithumbs.synth.scene import SyntheticVideo
 from multithumbs.types import CameraTrajectory, SharedSpace
 

@@ -1,6 +1,5 @@
 import multiprocessing
 import os
-from pathlib import Path
 
 import numpy as np
 import pytest
