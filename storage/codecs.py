@@ -13,10 +13,11 @@ from typing import Any
 import numpy as np
 
 from multithumbs.method.align import AlignedBoundary
-from multithumbs.types import CameraTrajectory, PersonTracks, SharedSpace, Shots, WorldResult
+from multithumbs.types import CameraTrajectory, GroundTruth, PersonTracks, SharedSpace, Shots, WorldResult
 
 CONTRACTS: dict[str, type] = {cls.__name__: cls for cls in
-                              (Shots, PersonTracks, CameraTrajectory, SharedSpace, WorldResult, AlignedBoundary)}
+                              (Shots, PersonTracks, CameraTrajectory, SharedSpace, WorldResult, GroundTruth,
+                               AlignedBoundary)}
 
 
 def encode(obj: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
@@ -30,6 +31,10 @@ def encode(obj: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         value = getattr(obj, f.name)
         if isinstance(value, np.ndarray):
             arrays[f.name] = value
+        elif type(value).__name__ in CONTRACTS:  # a nested contract (GroundTruth.world)
+            sub_arrays, sub_attributes = encode(value)
+            arrays.update({f"{f.name}/{k}": v for k, v in sub_arrays.items()})
+            fields[f.name] = {"__contract__": sub_attributes}
         elif isinstance(value, dict) and all(isinstance(v, np.ndarray) or np.isscalar(v) for v in value.values()):
             for k, v in value.items():
                 arrays[f"{f.name}/{k}"] = np.asarray(v)
@@ -52,7 +57,11 @@ def decode(arrays: dict[str, np.ndarray], attributes: dict[str, Any]) -> Any:
             kwargs[f.name] = arrays[f.name]
         elif f.name in attributes["fields"]:
             value = attributes["fields"][f.name]
-            if isinstance(value, dict) and "__arrays__" in value:
+            if isinstance(value, dict) and "__contract__" in value:
+                prefix = f"{f.name}/"
+                value = decode({k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)},
+                               value["__contract__"])
+            elif isinstance(value, dict) and "__arrays__" in value:
                 value = {k: arrays[f"{f.name}/{k}"] for k in value["__arrays__"]}
             elif isinstance(value, dict) and "__tuple__" in value:
                 value = tuple(value["__tuple__"])

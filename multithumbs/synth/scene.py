@@ -393,7 +393,7 @@ def synthesize(config: SceneConfig, body: BodyModel, progress=None) -> Synthetic
         transl=transl, valid=scene.presence.copy(), K=K, R=R, t=t, cut_frames=scene.cut_frames,
         fps=config.fps, image_size=(h, w), id_map=id_map, keypoints2d=keypoints)
     metadata = {"kind": "synthetic", "name": config.name, "seed": config.seed, "body_model": body.source,
-                "config": _config_json(config)}
+                "config": config_to_json(config)}
     truth = GroundTruth(world, bboxes, visible, scene.camera_ids, metadata)
     return SyntheticVideo(scene, truth, frames, instance, boundary_depth, vertices, body.faces)
 
@@ -430,7 +430,7 @@ def _observe(joints: np.ndarray, presence: np.ndarray, instance: np.ndarray, K, 
     return keypoints, bboxes, visible
 
 
-def _config_json(config: SceneConfig) -> dict:
+def config_to_json(config: SceneConfig) -> dict:
     out = dataclasses.asdict(config)
     out["motion"] = dataclasses.asdict(config.motion)
     return out

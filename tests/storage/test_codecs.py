@@ -5,7 +5,7 @@ import numpy as np
 from storage.codecs import decode, encode
 from storage.keys import artifact_key
 from storage.store import ArtifactStore
-from multithumbs.types import CameraTrajectory, Shots, WorldResult
+from multithumbs.types import CameraTrajectory, GroundTruth, Shots, WorldResult
 
 
 def _equal(a, b):
@@ -13,7 +13,9 @@ def _equal(a, b):
         x, y = getattr(a, f.name), getattr(b, f.name)
         if isinstance(x, np.ndarray):
             np.testing.assert_array_equal(x, y)
-        elif isinstance(x, dict):
+        elif dataclasses.is_dataclass(x):
+            _equal(x, y)
+        elif isinstance(x, dict) and x and all(isinstance(v, np.ndarray) for v in x.values()):
             assert x.keys() == y.keys()
             for k in x:
                 np.testing.assert_array_equal(x[k], y[k])
@@ -34,6 +36,8 @@ def test_contracts_survive_the_store(tmp_path):
                     np.tile(np.eye(3), (T, 1, 1)), rng.normal(size=(T, 3)), np.array([3]), 30.0, (90, 160),
                     np.array([[0, 5, 0], [1, 7, 0]]), rng.random((2, T, 24, 3)), {"loss": np.arange(4.0)}),
     ]
+    items.append(GroundTruth(items[2], rng.random((2, T, 4)), rng.random((2, T)) > 0.5, np.array([0, 0, 0, 1, 1, 1]),
+                             {"kind": "synthetic", "config": {"seed": 3}}))
     for i, item in enumerate(items):
         arrays, attrs = encode(item)
         key = artifact_key(type(item).__name__, 1, {"i": i}, [])

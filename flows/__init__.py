@@ -1,0 +1,1 @@
+"""Prefect flows: the synthetic demo through the real stages (more flows: DESIGN §6)."""
