@@ -94,36 +94,53 @@ def _pelvis_rest(body, betas: np.ndarray) -> np.ndarray:
         return body.rest_joints(betas).double().numpy()[..., 0, :]
 
 
-def boundary_people(before: PersonTracks, after: PersonTracks, body) -> BoundaryPeople:
-    """The people valid at the last frame of ``before`` and the first frame of ``after``, posed once."""
-    sides = [(before, before.num_frames - 1), (after, 0)]
-    present_idx = [np.nonzero(tr.valid[:, f])[0] for tr, f in sides]
-    p_max = max(1, max(len(ix) for ix in present_idx))
+def boundary_people(before: PersonTracks, after: PersonTracks, body, window: int = 3) -> BoundaryPeople:
+    """The people around a cut — the last frame of ``before``, the first of ``after`` — posed once.
+
+    A person the detector missed at the boundary frame itself is taken from their detection nearest to it
+    within ``window`` frames (people move centimetres in that time), so one missed frame does not leave
+    them unaligned; ``track_frame`` records which frame was used.
+    """
+    sides = []
+    for tr, last in ((before, True), (after, False)):
+        frames = np.arange(tr.num_frames)
+        near = frames[-window:][::-1] if last else frames[:window]
+        picks = []
+        for i in range(tr.num_people):
+            hits = near[tr.valid[i, near]]
+            if len(hits):
+                picks.append((i, int(hits[0])))
+        sides.append((tr, picks))
+    p_max = max(1, max(len(picks) for _, picks in sides))
     h, w = before.image_size
     v_count = body.num_vertices
     out = {
         "present": np.zeros((2, p_max), bool), "track_index": np.full((2, p_max), -1),
+        "track_frame": np.full((2, p_max), -1),
         "local_vertices": np.zeros((2, p_max, v_count, 3)), "local_joints": np.zeros((2, p_max, 24, 3)),
         "orient_cam": np.zeros((2, p_max, 3)), "pelvis_cam": np.zeros((2, p_max, 3)),
         "keypoints": np.zeros((2, p_max, 24, 3)), "masks": np.zeros((2, p_max, h, w), bool),
     }
-    for k, ((tr, f), idx) in enumerate(zip(sides, present_idx)):
-        if not len(idx):
+    for k, (tr, picks) in enumerate(sides):
+        if not picks:
             continue
+        idx = np.array([i for i, _ in picks])
+        f = np.array([fr for _, fr in picks])
         with torch.no_grad():
             posed = body.forward(np.zeros((len(idx), 3)), tr.body_pose[idx, f], tr.betas[idx])
         verts, joints = posed.vertices.double().numpy(), posed.joints.double().numpy()
         n = len(idx)
         out["present"][k, :n] = True
         out["track_index"][k, :n] = idx
+        out["track_frame"][k, :n] = f
         out["local_vertices"][k, :n] = verts - joints[:, :1]
         out["local_joints"][k, :n] = joints - joints[:, :1]
         out["orient_cam"][k, :n] = tr.global_orient[idx, f]
         out["pelvis_cam"][k, :n] = tr.transl[idx, f] + joints[:, 0]
         kp = tr.keypoints2d[idx, f]
         out["keypoints"][k, :n, :, :] = kp[:, :24] if kp.shape[1] >= 24 else 0.0
-        for j, i in enumerate(idx):
-            out["masks"][k, j] = tr.mask(i, f)
+        for j, (i, fr) in enumerate(picks):
+            out["masks"][k, j] = tr.mask(i, fr)
     return BoundaryPeople(faces=body.faces, **out)
 
 
@@ -212,12 +229,13 @@ def propagate(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequen
                 cut = aligned[c]
                 for j in np.nonzero(cut.present[side])[0]:
                     i = int(cut.track_index[side, j])
+                    f = frame if cut.track_frame is None else int(cut.track_frame[side, j])
                     m = space_to_world[c]
                     rot = m[:3, :3] / np.cbrt(np.linalg.det(m[:3, :3]))
                     orient_w = matrix_to_axis_angle(rot @ axis_angle_to_matrix(cut.orient[side, j]))
                     pelvis_w = _apply_matrix(m, cut.pelvis[side, j])
-                    corrections[i].append(root_correction(frame, tr.global_orient[i, frame], pelvis_cam[i, frame],
-                                                          orient_w, pelvis_w, shot_R[k][frame], shot_t[k][frame]))
+                    corrections[i].append(root_correction(f, tr.global_orient[i, f], pelvis_cam[i, f],
+                                                          orient_w, pelvis_w, shot_R[k][f], shot_t[k][f]))
         known = [c.depth_scale for cs in corrections.values() for c in cs]
         default_scale = float(np.median(known)) if known else 1.0
         orient_k = np.zeros_like(tr.global_orient)
@@ -268,14 +286,14 @@ class Identities:
 
 
 def _candidate(tr: PersonTracks, placement_pelvis: np.ndarray, i: int, frame: int, window: np.ndarray,
-               min_conf: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+               min_conf: float, gap_seconds: float) -> tuple:
     appearance = mean_descriptor(tr.appearance[i, window], tr.appearance_valid[i, window])
     visible = tr.keypoints2d[i, frame, 1:24, 2] > min_conf if tr.keypoints2d.shape[2] >= 24 else np.ones(23, bool)
-    return placement_pelvis[i, frame], appearance, tr.body_pose[i, frame], visible
+    return placement_pelvis[i, frame], appearance, tr.body_pose[i, frame], visible, gap_seconds
 
 
 def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: ReidConfig,
-               appearance_window: int = 15) -> Identities:
+               appearance_window: int = 15, fps: float = 30.0) -> Identities:
     """Assign global ids cut by cut; people absent on one side keep their ids for later shots."""
     n_shots = len(tracks)
     global_ids = [np.full(tr.num_people, -1) for tr in tracks]
@@ -291,20 +309,23 @@ def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: Rei
             if len(frames):
                 last = frames[-1]
                 last_state[int(global_ids[k][i])] = _candidate(
-                    tr, placement.pelvis[k], i, last, frames[-appearance_window:], config.keypoint_confidence)
+                    tr, placement.pelvis[k], i, last, frames[-appearance_window:], config.keypoint_confidence,
+                    tr.start_frame + last)
         before = sorted(last_state)
         after = []
         for i in range(nxt.num_people):
             frames = np.nonzero(nxt.valid[i])[0]
             after.append(_candidate(nxt, placement.pelvis[k + 1], i, frames[0], frames[:appearance_window],
-                                    config.keypoint_confidence) if len(frames) else None)
-        stack = lambda rows, j: np.stack([r[j] for r in rows]) if rows else np.zeros((0,))
-        rows_b = [last_state[g] for g in before]
+                                    config.keypoint_confidence, frames[0] / fps) if len(frames) else None)
+        cut_frame = nxt.start_frame
+        # The last candidate field holds the frame of the observation (before) or the gap (after).
+        rows_b = [(*last_state[g][:4], (cut_frame - 1 - last_state[g][4]) / fps) for g in before]
         rows_a = [r for r in after if r is not None]
         idx_a = [i for i, r in enumerate(after) if r is not None]
         if rows_b and rows_a:
-            cand_b = Candidates(*(stack(rows_b, j) for j in range(4)))
-            cand_a = Candidates(*(stack(rows_a, j) for j in range(4)))
+            stack = lambda rows, j: np.stack([np.asarray(r[j]) for r in rows])
+            cand_b = Candidates(*(stack(rows_b, j) for j in range(4)), gap=stack(rows_b, 4).astype(float))
+            cand_a = Candidates(*(stack(rows_a, j) for j in range(4)), gap=stack(rows_a, 4).astype(float))
             matching = match_people(cand_b, cand_a, config)
         else:
             empty = np.zeros((len(rows_b), len(rows_a)))
@@ -423,7 +444,7 @@ def finish_video(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Seq
         diagnostics[f"space_scale_cut{c}"] = np.float64(result.scale)
     placement = propagate(shots, tracks, trajectories, aligned, body, independent=config.independent_shots)
     diagnostics["trajectory_scales"] = placement.trajectory_scales
-    ids = reidentify(tracks, placement, config.reid, config.appearance_window)
+    ids = reidentify(tracks, placement, config.reid, config.appearance_window, shots.fps)
     for c, m in enumerate(ids.matchings):
         diagnostics[f"reid_cost_cut{c}"] = m.cost
         diagnostics[f"reid_distance_cut{c}"] = m.distance

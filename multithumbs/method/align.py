@@ -69,7 +69,7 @@ class AlignConfig:
     refine_cameras: bool = True
     staged: bool = True
     keypoint_confidence: float = 0.3
-    max_vertices: int = 800
+    max_vertices: int = 400
     min_person_points: int = 20
     depth_robust_scale: float = 0.05
     scale_method: str = "depth_ratio"
@@ -82,6 +82,8 @@ class BoundaryPeople:
     Attributes:
         present: ``(2, P)`` bool.
         track_index: ``(2, P)`` int, the person's index in its shot's ``PersonTracks`` (-1 when padding).
+        track_frame: ``(2, P)`` int, the shot-local frame the person was taken from (the boundary frame,
+            or their nearest detection to it).
         local_vertices: ``(2, P, V, 3)`` posed vertices relative to the pelvis, zero global orientation.
         local_joints: ``(2, P, 24, 3)`` posed joints, same frame.
         orient_cam: ``(2, P, 3)`` estimated root orientation in the camera frame (axis-angle).
@@ -93,6 +95,7 @@ class BoundaryPeople:
 
     present: np.ndarray
     track_index: np.ndarray
+    track_frame: np.ndarray
     local_vertices: np.ndarray
     local_joints: np.ndarray
     orient_cam: np.ndarray
@@ -114,6 +117,7 @@ class AlignedBoundary:
         pelvis: ``(2, P, 3)`` world pelvis positions.
         present: ``(2, P)`` bool, as in :class:`BoundaryPeople`.
         track_index: ``(2, P)`` as in :class:`BoundaryPeople`.
+        track_frame: ``(2, P)`` as in :class:`BoundaryPeople`, or None (the boundary frames themselves).
         scale: factor applied to the shared space (nan when no person had points: 1 was used).
         point_map: ``(2, H, W, 3)`` scaled scene point maps of both frames, zero where ``point_valid`` is False.
         point_valid: ``(2, H, W)`` bool.
@@ -133,6 +137,7 @@ class AlignedBoundary:
     point_valid: np.ndarray
     losses: np.ndarray = field(default_factory=lambda: np.zeros(0))
     method: str = "three_stage"
+    track_frame: np.ndarray | None = None
 
 
 def point_maps(space: SharedSpace, max_gap: float = 2.5) -> tuple[np.ndarray, np.ndarray]:
@@ -228,7 +233,8 @@ def align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignConf
     maps = maps * s
     R0, t0 = space.R.astype(np.float64), space.t.astype(np.float64) * s
     orient, pelvis = _camera_frame_roots(people, R0, t0)
-    common = dict(cut_frame=space.cut_frame, present=people.present, track_index=people.track_index, scale=scale,
+    common = dict(cut_frame=space.cut_frame, present=people.present, track_index=people.track_index,
+                  track_frame=people.track_frame, scale=scale,
                   point_map=maps, point_valid=valid)
     if skip:
         return AlignedBoundary(R=R0, t=t0, orient=orient, pelvis=pelvis, method="no_align", **common)
@@ -267,6 +273,10 @@ def _stage1_roots(people: BoundaryPeople, maps: np.ndarray, valid: np.ndarray, f
     return pelvis
 
 
+DTYPE = torch.float64
+"""Precision of the alignment's optimisation (float32 measured no faster here: the loop is bound by op count)."""
+
+
 class _Problem:
     """The batched alignment objective of one cut (tensors over 2 frames x P people)."""
 
@@ -278,7 +288,7 @@ class _Problem:
         self.size = (h, w)
         v_count = people.local_vertices.shape[2]
         self.vertex_ids = np.linspace(0, v_count - 1, min(config.max_vertices, v_count)).round().astype(int)
-        as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float64)
+        as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=DTYPE)
         self.present = torch.as_tensor(people.present)
         self.K = as_t(space.K)
         self.local_joints = as_t(people.local_joints)
@@ -299,16 +309,16 @@ class _Problem:
             for p in np.nonzero(people.present[k])[0]:
                 outside = ~(masks[k, p] | others[k, p])
                 dist[k, p] = ndimage.distance_transform_edt(outside) / self.norm if masks[k, p].any() else 0.0
-        self.sil_dist = torch.as_tensor(dist, dtype=torch.float64).reshape(-1, 1, h, w)
+        self.sil_dist = torch.as_tensor(dist, dtype=DTYPE).reshape(-1, 1, h, w)
         self.masks = torch.as_tensor(masks)
         self.point_map = as_t(maps)
         self.point_valid = torch.as_tensor(valid)
 
     def state(self, R, t, orient, pelvis) -> dict[str, torch.Tensor]:
-        as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float64)
+        as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=DTYPE)
         R = as_t(R)
         return {
-            "R0": R, "cam_rot": torch.zeros(2, 3, dtype=torch.float64, requires_grad=True),
+            "R0": R, "cam_rot": torch.zeros(2, 3, dtype=DTYPE, requires_grad=True),
             "cam_centre": camera_centre(R, as_t(t)).clone().requires_grad_(True),
             "orient": as_t(orient).clone().requires_grad_(True),
             "pelvis": as_t(pelvis).clone().requires_grad_(True),
@@ -339,7 +349,7 @@ class _Problem:
         grid = torch.stack([vuv[..., 0] / (w - 1) * 2 - 1, vuv[..., 1] / (h - 1) * 2 - 1], dim=-1)
         sil = torch.nn.functional.grid_sample(self.sil_dist, grid.reshape(-1, 1, grid.shape[-2], 2), align_corners=True,
                                               padding_mode="border").reshape(verts.shape[:-1])
-        present = self.present[..., None].double()
+        present = self.present[..., None].to(DTYPE)
         loss_sil = (sil * present).sum() / (present.sum() * verts.shape[-2]).clamp(min=1)
         # Depth: camera-facing vertices inside the mask vs the scene point at their pixel.
         with torch.no_grad():  # which vertices face the camera: a selection, not a gradient path
@@ -382,5 +392,5 @@ class _Problem:
     def export(self, state) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         with torch.no_grad():
             R, t = self.cameras(state)
-            return (R.numpy(), t.numpy(), state["orient"].detach().numpy().copy(),
-                    state["pelvis"].detach().numpy().copy())
+            return (R.double().numpy(), t.double().numpy(), state["orient"].detach().double().numpy(),
+                    state["pelvis"].detach().double().numpy())

@@ -25,6 +25,9 @@ class ReidConfig:
         w_app: weight λapp of the appearance dissimilarity A (in [0, 1]).
         w_pose: weight λpos of the pose dissimilarity P (mean joint angle, radians).
         max_distance: τ, matched pairs farther apart than this (m) are rejected.
+        max_speed: when a candidate was last (or first) seen some time before (after) the cut, the gate
+            grows by this walking speed times that gap (m/s): someone who left the view a second before
+            the cut may be a metre away when they reappear.
         keypoint_confidence: a joint counts as visible when its 2D keypoint confidence exceeds this.
     """
 
@@ -32,6 +35,7 @@ class ReidConfig:
     w_app: float = 0.2
     w_pose: float = 0.35
     max_distance: float = 1.0
+    max_speed: float = 1.5
     keypoint_confidence: float = 0.5
 
 
@@ -44,12 +48,14 @@ class Candidates:
         appearance: ``(N, D)`` appearance descriptors (see :mod:`multithumbs.appearance`).
         body_pose: ``(N, 23, 3)`` axis-angle body pose near the cut.
         joint_visible: ``(N, 23)`` bool, the body joint (SMPL joints 1..23) was visible.
+        gap: ``(N,)`` seconds between the observation and the cut (0 at the boundary frame).
     """
 
     root: np.ndarray
     appearance: np.ndarray
     body_pose: np.ndarray
     joint_visible: np.ndarray
+    gap: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -101,6 +107,9 @@ def match_people(before: Candidates, after: Candidates, config: ReidConfig = Rei
     pose = pose_dissimilarity(before.body_pose, after.body_pose, before.joint_visible, after.joint_visible)
     cost = config.w_geo * distance + config.w_app * appearance + config.w_pose * pose
     rows, cols = linear_sum_assignment(cost)
-    keep = distance[rows, cols] <= config.max_distance
+    gap_a = before.gap if before.gap is not None else np.zeros(n_a)
+    gap_b = after.gap if after.gap is not None else np.zeros(n_b)
+    gate = config.max_distance + config.max_speed * (gap_a[:, None] + gap_b[None])
+    keep = distance[rows, cols] <= gate[rows, cols]
     pairs = np.stack([rows[keep], cols[keep]], axis=1).astype(np.int64)
     return Matching(pairs, cost, distance, appearance, pose)
