@@ -286,10 +286,11 @@ class Identities:
 
 
 def _candidate(tr: PersonTracks, placement_pelvis: np.ndarray, i: int, frame: int, window: np.ndarray,
-               min_conf: float, gap_seconds: float) -> tuple:
+               min_conf: float) -> tuple:
+    """``(root, appearance, body_pose, joint_visible, video_frame)`` of track ``i`` at shot-local ``frame``."""
     appearance = mean_descriptor(tr.appearance[i, window], tr.appearance_valid[i, window])
     visible = tr.keypoints2d[i, frame, 1:24, 2] > min_conf if tr.keypoints2d.shape[2] >= 24 else np.ones(23, bool)
-    return placement_pelvis[i, frame], appearance, tr.body_pose[i, frame], visible, gap_seconds
+    return placement_pelvis[i, frame], appearance, tr.body_pose[i, frame], visible, tr.start_frame + frame
 
 
 def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: ReidConfig,
@@ -309,23 +310,22 @@ def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: Rei
             if len(frames):
                 last = frames[-1]
                 last_state[int(global_ids[k][i])] = _candidate(
-                    tr, placement.pelvis[k], i, last, frames[-appearance_window:], config.keypoint_confidence,
-                    tr.start_frame + last)
+                    tr, placement.pelvis[k], i, last, frames[-appearance_window:], config.keypoint_confidence)
         before = sorted(last_state)
         after = []
         for i in range(nxt.num_people):
             frames = np.nonzero(nxt.valid[i])[0]
             after.append(_candidate(nxt, placement.pelvis[k + 1], i, frames[0], frames[:appearance_window],
-                                    config.keypoint_confidence, frames[0] / fps) if len(frames) else None)
+                                    config.keypoint_confidence) if len(frames) else None)
         cut_frame = nxt.start_frame
-        # The last candidate field holds the frame of the observation (before) or the gap (after).
-        rows_b = [(*last_state[g][:4], (cut_frame - 1 - last_state[g][4]) / fps) for g in before]
+        rows_b = [last_state[g] for g in before]
         rows_a = [r for r in after if r is not None]
         idx_a = [i for i, r in enumerate(after) if r is not None]
         if rows_b and rows_a:
             stack = lambda rows, j: np.stack([np.asarray(r[j]) for r in rows])
-            cand_b = Candidates(*(stack(rows_b, j) for j in range(4)), gap=stack(rows_b, 4).astype(float))
-            cand_a = Candidates(*(stack(rows_a, j) for j in range(4)), gap=stack(rows_a, 4).astype(float))
+            # Seconds between each observation and the cut: the gate widens with them.
+            cand_b = Candidates(*(stack(rows_b, j) for j in range(4)), gap=(cut_frame - 1 - stack(rows_b, 4)) / fps)
+            cand_a = Candidates(*(stack(rows_a, j) for j in range(4)), gap=(stack(rows_a, 4) - cut_frame) / fps)
             matching = match_people(cand_b, cand_a, config)
         else:
             empty = np.zeros((len(rows_b), len(rows_a)))
