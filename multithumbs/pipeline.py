@@ -52,6 +52,9 @@ class MethodConfig:
         skip_post: the ``no_post`` ablation.
         independent_shots: the single-shot baseline (no shared space; cross-cut links by appearance and pose).
         appearance_window: frames next to a cut whose appearance descriptors are averaged for re-ID.
+        propagate_orientation: carry the boundary alignment's orientation correction along each shot (the
+            paper's §3.3); False keeps the estimator's per-frame camera-relative orientation and carries the
+            aligned position only.
         variant: name of the variant this config implements (for reports).
     """
 
@@ -62,6 +65,7 @@ class MethodConfig:
     skip_post: bool = False
     independent_shots: bool = False
     appearance_window: int = 15
+    propagate_orientation: bool = True
     variant: str = "full"
 
 
@@ -183,8 +187,13 @@ def _apply_matrix(m: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def propagate(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequence[CameraTrajectory],
-              aligned: Sequence[AlignedBoundary], body, independent: bool = False) -> Placement:
-    """Cameras and people of every shot in the world frame (the first cut's metric shared space)."""
+              aligned: Sequence[AlignedBoundary], body, independent: bool = False,
+              propagate_orientation: bool = True) -> Placement:
+    """Cameras and people of every shot in the world frame (the first cut's metric shared space).
+
+    ``propagate_orientation=False`` carries only the aligned root position along a shot and keeps the
+    estimator's camera-relative orientation (see :class:`MethodConfig`).
+    """
     edges = [r[0] for r in shots.ranges] + [shots.num_frames]
     n_shots = shots.num_shots
     T = shots.num_frames
@@ -241,7 +250,8 @@ def propagate(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequen
         orient_k = np.zeros_like(tr.global_orient)
         pelvis_k = np.zeros_like(pelvis_cam)
         for i in range(tr.num_people):
-            o_c, p_c = apply_corrections(tr.global_orient[i], pelvis_cam[i], corrections[i], default_scale)
+            o_c, p_c = apply_corrections(tr.global_orient[i], pelvis_cam[i], corrections[i], default_scale,
+                                         correct_orientation=propagate_orientation)
             orient_k[i], pelvis_k[i] = camera_to_world_roots(o_c, p_c, shot_R[k], shot_t[k])
         orients.append(orient_k)
         pelvises.append(pelvis_k)
@@ -442,7 +452,8 @@ def finish_video(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Seq
     for c, result in enumerate(aligned):
         diagnostics[f"align_loss_cut{c}"] = result.losses
         diagnostics[f"space_scale_cut{c}"] = np.float64(result.scale)
-    placement = propagate(shots, tracks, trajectories, aligned, body, independent=config.independent_shots)
+    placement = propagate(shots, tracks, trajectories, aligned, body, independent=config.independent_shots,
+                          propagate_orientation=config.propagate_orientation)
     diagnostics["trajectory_scales"] = placement.trajectory_scales
     ids = reidentify(tracks, placement, config.reid, config.appearance_window, shots.fps)
     for c, m in enumerate(ids.matchings):

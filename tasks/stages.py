@@ -162,7 +162,8 @@ def method_params(variant: str) -> dict[str, dict]:
     config = variant_config(variant)
     return {"align": {"align": dataclasses.asdict(config.align), "skip": config.skip_align},
             "finish": {"variant": variant, "reid": dataclasses.asdict(config.reid),
-                       "post": dataclasses.asdict(config.post), "skip_post": config.skip_post}}
+                       "post": dataclasses.asdict(config.post), "skip_post": config.skip_post,
+                       "propagate_orientation": config.propagate_orientation}}
 
 
 @task(name="evaluate", cache_policy=NO_CACHE)

@@ -112,7 +112,7 @@ def root_correction(frame: int, orient_cam: np.ndarray, pelvis_cam: np.ndarray, 
 
 
 def apply_corrections(orient_cam: np.ndarray, pelvis_cam: np.ndarray, corrections: list[RootCorrection],
-                      default_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+                      default_scale: float = 1.0, correct_orientation: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Corrected camera-frame roots ``(T, 3)``, ``(T, 3)`` of one track.
 
     No correction: depth scaled by ``default_scale``. One: applied to every frame. Two (both ends of a
@@ -130,7 +130,8 @@ def apply_corrections(orient_cam: np.ndarray, pelvis_cam: np.ndarray, correction
     offset = (1 - w)[:, None] * first.offset + w[:, None] * last.offset
     delta = matrix_to_axis_angle(last.rotation @ first.rotation.T)
     rotation = axis_angle_to_matrix(w[:, None] * delta) @ first.rotation
-    return matrix_to_axis_angle(rotation @ rot_cam), scale[:, None] * pelvis_cam + offset
+    orient = matrix_to_axis_angle(rotation @ rot_cam) if correct_orientation else orient_cam.copy()
+    return orient, scale[:, None] * pelvis_cam + offset
 
 
 def camera_to_world_roots(orient_cam: np.ndarray, pelvis_cam: np.ndarray, R: np.ndarray, t: np.ndarray

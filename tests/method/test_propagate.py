@@ -3,7 +3,8 @@ import torch
 
 from multithumbs.geometry import axis_angle_to_matrix, camera_centre, matrix_to_axis_angle, transform_cameras
 from multithumbs.method.align import AlignedBoundary, point_maps
-from multithumbs.method.propagate import place_trajectory, similarity_from_camera_pair
+from multithumbs.method.propagate import (RootCorrection, apply_corrections, place_trajectory,
+                                          similarity_from_camera_pair)
 from multithumbs.pipeline import propagate
 from multithumbs.synth.perception import true_track_people
 
@@ -75,3 +76,19 @@ def test_propagation_is_exact_on_noise_free_input(tiny, body):
             np.testing.assert_allclose(axis_angle_to_matrix(placement.orient[k][i, v]),
                                        rigid.rotation.numpy() @ axis_angle_to_matrix(world.global_orient[p, a:b][v]),
                                        atol=1e-6)
+
+
+def test_corrections_scale_depth_offset_and_optionally_rotate():
+    rng = np.random.default_rng(3)
+    orient, pelvis = rng.normal(0, 0.3, (5, 3)), rng.uniform([-1, -1, 3], [1, 1, 6], (5, 3))
+    turn = axis_angle_to_matrix(np.array([0.0, 0.2, 0.0]))
+    fix = RootCorrection(frame=4, depth_scale=1.1, offset=np.array([0.01, 0.0, 0.0]), rotation=turn)
+    o, p = apply_corrections(orient, pelvis, [fix])
+    np.testing.assert_allclose(p, 1.1 * pelvis + [0.01, 0, 0])
+    np.testing.assert_allclose(axis_angle_to_matrix(o), turn @ axis_angle_to_matrix(orient), atol=1e-12)
+    o_kept, p_kept = apply_corrections(orient, pelvis, [fix], correct_orientation=False)
+    np.testing.assert_allclose(o_kept, orient)
+    np.testing.assert_allclose(p_kept, p)
+    # No correction: only the shot's default depth scale.
+    o_none, p_none = apply_corrections(orient, pelvis, [], default_scale=0.9)
+    np.testing.assert_allclose(p_none, 0.9 * pelvis)
