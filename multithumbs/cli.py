@@ -219,15 +219,14 @@ def main() -> None:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
-    except (typer.Exit, SystemExit):
+    except SystemExit:
         raise
-    except Exception as exc:  # click's usage errors
-        import click
-
-        if isinstance(exc, click.exceptions.ClickException):
+    except Exception as exc:
+        # Usage errors of typer's parser: typer vendors click, so match their shape, not a class.
+        if hasattr(exc, "format_message") and isinstance(getattr(exc, "exit_code", None), int):
             print(f"error: {exc.format_message()}", file=sys.stderr)
-            sys.exit(exc.exit_code)
-        if isinstance(exc, click.exceptions.Abort):
+            sys.exit(2)
+        if type(exc).__name__ == "Abort":
             sys.exit(130)
         raise
 

@@ -55,3 +55,16 @@ def test_synth_then_eval_ground_truth_against_itself(tmp_path):
 def test_eval_names_a_missing_file(tmp_path):
     out = run_cli("eval", tmp_path / "nope.npz", tmp_path / "gt.npz")
     assert out.returncode == 2 and "nope.npz" in out.stderr and len(out.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["nosuchcmd"], "No such command"),
+    (["synth", "--people", "x", "--out", "o"], "--people"),
+    (["synth"], "--out"),
+    (["bench", "--variants", "bogus"], "bogus"),
+])
+def test_usage_errors_are_one_line_with_exit_code_2(args, needle):
+    out = run_cli(*args)
+    assert out.returncode == 2 and "Traceback" not in out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0]
