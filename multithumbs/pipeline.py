@@ -28,7 +28,7 @@ import torch
 
 from multithumbs.appearance import mean_descriptor
 from multithumbs.errors import InputError
-from multithumbs.geometry import Similarity, axis_angle_to_matrix, matrix_to_axis_angle
+from multithumbs.geometry import Similarity, axis_angle_to_matrix, matrix_to_axis_angle, transform_cameras
 from multithumbs.method.align import AlignConfig, AlignedBoundary, BoundaryPeople, align_boundary
 from multithumbs.method.post import PostConfig, PostInput, post_process
 from multithumbs.method.propagate import (apply_corrections, camera_to_world_roots, place_trajectory,
@@ -262,9 +262,9 @@ def propagate(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequen
 
 def _camera_in_world(R: np.ndarray, t: np.ndarray, space_to_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A camera of a shared space re-expressed in the world (the space-to-world map is SE(3))."""
-    rot = space_to_world[:3, :3]
-    R_w = R @ rot.T
-    return R_w, t - R_w @ space_to_world[:3, 3]
+    sim = Similarity.from_numpy(1.0, space_to_world[:3, :3], space_to_world[:3, 3])
+    R_w, t_w = transform_cameras(sim, torch.from_numpy(np.asarray(R, float)), torch.from_numpy(np.asarray(t, float)))
+    return R_w.numpy(), t_w.numpy()
 
 
 def _map_in_world(point_map: np.ndarray, valid: np.ndarray, space_to_world: np.ndarray) -> np.ndarray:

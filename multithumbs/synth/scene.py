@@ -211,8 +211,8 @@ def _make_cameras(config: SceneConfig, rng: np.random.Generator) -> CameraRig:
         height = rng.uniform(*config.camera_height)
         radial = np.array([np.cos(az), np.sin(az)])
         tangent = np.array([-radial[1], radial[0]])
-        eye_xy = config.camera_distance * radial[None] + 0 * t_axis[:, None]
-        target_xy = 0.3 * rng.uniform(-1, 1, 2)[None] + 0 * t_axis[:, None]
+        eye_xy = np.tile(config.camera_distance * radial, (config.num_frames, 1))
+        target_xy = np.tile(0.3 * rng.uniform(-1, 1, 2), (config.num_frames, 1))
         if config.camera_is_moving(k):
             # Dolly sideways through the shot, centred on the shot's middle; the aim follows half-way.
             s0, s1 = np.nonzero(config_shot_mask(config, k))[0][[0, -1]]
