@@ -4,7 +4,6 @@ import json
 import os
 import time
 
-import numpy as np
 import pytest
 
 from multithumbs.synth.scene import SceneConfig, config_to_json
