@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import sys
@@ -210,6 +211,15 @@ def _jsonable(value):
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
+
+
+def _register(module: str) -> None:
+    """Add the commands an area defines beside its code (``register(app)``); imports stay lazy inside them."""
+    importlib.import_module(module).register(app)
+
+
+# Commands of the library's areas: one line per area, sorted.
+# end of area commands
 
 
 def main() -> None:
