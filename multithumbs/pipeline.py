@@ -449,14 +449,20 @@ def align_cuts(shots: Shots, tracks: Sequence[PersonTracks], spaces: Sequence[Sh
 def finish_video(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequence[CameraTrajectory],
                  aligned: Sequence[AlignedBoundary], body, config: MethodConfig = MethodConfig()) -> WorldResult:
     """Stages 3-6: propagation, re-identification, assembly, post-processing, the result."""
+    placement = propagate(shots, tracks, trajectories, aligned, body, independent=config.independent_shots,
+                          propagate_orientation=config.propagate_orientation)
+    ids = reidentify(tracks, placement, config.reid, config.appearance_window, shots.fps)
+    return finish_world(shots, tracks, aligned, placement, ids, body, config)
+
+
+def finish_world(shots: Shots, tracks: Sequence[PersonTracks], aligned: Sequence[AlignedBoundary],
+                 placement: Placement, ids: Identities, body, config: MethodConfig = MethodConfig()) -> WorldResult:
+    """Stages 5-6 after re-identification: assembly, post-processing and the result with its diagnostics."""
     diagnostics: dict[str, np.ndarray] = {}
     for c, result in enumerate(aligned):
         diagnostics[f"align_loss_cut{c}"] = result.losses
         diagnostics[f"space_scale_cut{c}"] = np.float64(result.scale)
-    placement = propagate(shots, tracks, trajectories, aligned, body, independent=config.independent_shots,
-                          propagate_orientation=config.propagate_orientation)
     diagnostics["trajectory_scales"] = placement.trajectory_scales
-    ids = reidentify(tracks, placement, config.reid, config.appearance_window, shots.fps)
     for c, m in enumerate(ids.matchings):
         diagnostics[f"reid_cost_cut{c}"] = m.cost
         diagnostics[f"reid_distance_cut{c}"] = m.distance

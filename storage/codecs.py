@@ -13,11 +13,17 @@ from typing import Any
 import numpy as np
 
 from multithumbs.method.align import AlignedBoundary
+from multithumbs.method.reid import Matching
+from multithumbs.pipeline import Identities, Placement
 from multithumbs.types import CameraTrajectory, GroundTruth, PersonTracks, SharedSpace, Shots, WorldResult
 
 CONTRACTS: dict[str, type] = {cls.__name__: cls for cls in
                               (Shots, PersonTracks, CameraTrajectory, SharedSpace, WorldResult, GroundTruth,
-                               AlignedBoundary)}
+                               AlignedBoundary, Placement, Identities, Matching)}
+
+
+def _is_contract(value: Any) -> bool:
+    return type(value).__name__ in CONTRACTS
 
 
 def encode(obj: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
@@ -31,10 +37,20 @@ def encode(obj: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         value = getattr(obj, f.name)
         if isinstance(value, np.ndarray):
             arrays[f.name] = value
-        elif type(value).__name__ in CONTRACTS:  # a nested contract (GroundTruth.world)
+        elif _is_contract(value):  # a nested contract (GroundTruth.world)
             sub_arrays, sub_attributes = encode(value)
             arrays.update({f"{f.name}/{k}": v for k, v in sub_arrays.items()})
             fields[f.name] = {"__contract__": sub_attributes}
+        elif isinstance(value, tuple) and value and all(isinstance(v, np.ndarray) for v in value):
+            arrays.update({f"{f.name}/{i}": v for i, v in enumerate(value)})  # per-shot arrays of any shapes
+            fields[f.name] = {"__array_tuple__": len(value)}
+        elif isinstance(value, tuple) and value and all(_is_contract(v) for v in value):
+            parts = []
+            for i, item in enumerate(value):  # per-cut contracts (Identities.matchings)
+                sub_arrays, sub_attributes = encode(item)
+                arrays.update({f"{f.name}/{i}/{k}": v for k, v in sub_arrays.items()})
+                parts.append(sub_attributes)
+            fields[f.name] = {"__contract_tuple__": parts}
         elif isinstance(value, dict) and all(isinstance(v, np.ndarray) or np.isscalar(v) for v in value.values()):
             for k, v in value.items():
                 arrays[f"{f.name}/{k}"] = np.asarray(v)
@@ -61,6 +77,12 @@ def decode(arrays: dict[str, np.ndarray], attributes: dict[str, Any]) -> Any:
                 prefix = f"{f.name}/"
                 value = decode({k[len(prefix):]: v for k, v in arrays.items() if k.startswith(prefix)},
                                value["__contract__"])
+            elif isinstance(value, dict) and "__array_tuple__" in value:
+                value = tuple(arrays[f"{f.name}/{i}"] for i in range(value["__array_tuple__"]))
+            elif isinstance(value, dict) and "__contract_tuple__" in value:
+                value = tuple(decode({k[len(f"{f.name}/{i}/"):]: v for k, v in arrays.items()
+                                      if k.startswith(f"{f.name}/{i}/")}, part)
+                              for i, part in enumerate(value["__contract_tuple__"]))
             elif isinstance(value, dict) and "__arrays__" in value:
                 value = {k: arrays[f"{f.name}/{k}"] for k in value["__arrays__"]}
             elif isinstance(value, dict) and "__tuple__" in value:

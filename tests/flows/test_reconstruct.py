@@ -37,7 +37,7 @@ def test_flow_reconstructs_then_serves_everything_from_the_store(prefect, tmp_pa
     assert json.loads((out / "metrics.json").read_text())["mpjpe"] == pytest.approx(metrics["mpjpe"])
     store = ArtifactStore(store_url)
     created = {k: store.record(k)["created"] for k in store.keys()}
-    assert {store.record(k)["stage"] for k in created} == {"simulate_inputs", "align", "finish"}
+    assert {store.record(k)["stage"] for k in created} == {"simulate_inputs", "align", "propagate", "reid", "post"}
 
     start = time.perf_counter()
     again = reconstruct_synthetic(config_to_json(TINY), str(out), store_url)
@@ -46,3 +46,17 @@ def test_flow_reconstructs_then_serves_everything_from_the_store(prefect, tmp_pa
     assert {k: store.record(k)["created"] for k in store.keys()} == created
     assert again["w_mpjpe"] == pytest.approx(metrics["w_mpjpe"])
     assert second < first / 3, (first, second)
+
+
+def test_changing_a_reid_parameter_recomputes_reid_and_what_follows_only(prefect, tmp_path):
+    from flows.reconstruct import reconstruct_synthetic
+    from storage.store import ArtifactStore
+
+    out, store_url = tmp_path / "out", str(tmp_path / "store")
+    out.mkdir()
+    reconstruct_synthetic(config_to_json(TINY), str(out), store_url)
+    store = ArtifactStore(store_url)
+    before = {k: store.record(k)["stage"] for k in store.keys()}
+    reconstruct_synthetic(config_to_json(TINY), str(out), store_url, method={"reid": {"max_distance": 0.8}})
+    new = {k: store.record(k)["stage"] for k in store.keys() if k not in before}
+    assert sorted(new.values()) == ["post", "reid"]

@@ -5,6 +5,8 @@ import numpy as np
 from storage.codecs import decode, encode
 from storage.keys import artifact_key
 from storage.store import ArtifactStore
+from multithumbs.method.reid import Matching
+from multithumbs.pipeline import Identities, Placement
 from multithumbs.types import CameraTrajectory, GroundTruth, Shots, WorldResult
 
 
@@ -15,12 +17,23 @@ def _equal(a, b):
             np.testing.assert_array_equal(x, y)
         elif dataclasses.is_dataclass(x):
             _equal(x, y)
+        elif isinstance(x, tuple) and x and not np.isscalar(x[0]):
+            assert len(x) == len(y), f.name
+            for u, v in zip(x, y):
+                _equal_value(u, v)
         elif isinstance(x, dict) and x and all(isinstance(v, np.ndarray) for v in x.values()):
             assert x.keys() == y.keys()
             for k in x:
                 np.testing.assert_array_equal(x[k], y[k])
         else:
             assert x == y, f.name
+
+
+def _equal_value(x, y):
+    if isinstance(x, np.ndarray):
+        np.testing.assert_array_equal(x, y)
+    else:
+        _equal(x, y)
 
 
 def test_contracts_survive_the_store(tmp_path):
@@ -42,4 +55,22 @@ def test_contracts_survive_the_store(tmp_path):
         arrays, attrs = encode(item)
         key = artifact_key(type(item).__name__, 1, {"i": i}, [])
         store.write(key, "test", arrays, attrs)
+        _equal(decode(*store.read(key)), item)
+
+
+def test_method_intermediates_survive_the_store(tmp_path):
+    """Per-shot arrays of different shapes and per-cut nested contracts (the propagation and re-ID outputs)."""
+    store = ArtifactStore(tmp_path)
+    rng = np.random.default_rng(1)
+    eye = np.tile(np.eye(3), (7, 1, 1))
+    placement = Placement(eye, rng.normal(size=(7, 3)), eye, (rng.normal(size=(2, 3, 3)), rng.normal(size=(3, 4, 3))),
+                          (rng.normal(size=(2, 3, 3)), rng.normal(size=(3, 4, 3))),
+                          (rng.normal(size=(2, 3, 3)), rng.normal(size=(3, 4, 3))), np.array([1.0, np.nan]),
+                          np.eye(4)[None])
+    matching = Matching(np.array([[0, 1], [1, 0]]), *rng.random((4, 2, 3)))
+    ids = Identities((np.array([0, 1]), np.array([1, 0, 2])), (matching,), (np.array([0, 1]),),
+                     np.array([[True], [True], [False]]))
+    for i, item in enumerate((placement, ids)):
+        key = artifact_key("intermediate", 1, {"i": i}, [])
+        store.write(key, "test", *encode(item))
         _equal(decode(*store.read(key)), item)

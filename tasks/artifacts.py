@@ -1,0 +1,78 @@
+"""The store-backed stage wrapper every task uses (DESIGN §6).
+
+Every task takes the store's URL, its inputs as :class:`~storage.store.ArtifactRef` s and its parameters
+as plain JSON, computes its artifact key from them (:func:`storage.keys.artifact_key`), and returns the
+ref without computing when the store already holds that key: the store is the source of truth. The
+same key is the task's Prefect ``cache_key_fn`` while the store holds it, so Prefect's cache and the
+store agree, and a deleted or corrupt artifact is recomputed rather than served from Prefect's cache.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any, Callable
+
+from prefect import task
+
+from storage.codecs import decode, encode
+from storage.keys import artifact_key
+from storage.store import ArtifactRef, ArtifactStore, CorruptArtifact
+
+STAGE_VERSIONS = {"simulate_inputs": 1, "video": 1, "shots": 1, "perception": 1, "trajectory": 1, "space": 1,
+                  "align": 1, "propagate": 1, "reid": 1, "post": 1}
+"""Bump a stage's version when its code changes its output: its key and every key after it change."""
+
+
+@functools.lru_cache(maxsize=8)
+def open_store(url: str) -> ArtifactStore:
+    return ArtifactStore(url)
+
+
+def stage_key(stage: str, params: dict, inputs: dict[str, ArtifactRef]) -> str:
+    """The artifact key of ``stage`` run with ``params`` on ``inputs`` (a Merkle DAG: inputs by their keys)."""
+    return artifact_key(stage, STAGE_VERSIONS[stage], params, {k: r.key for k, r in sorted(inputs.items())})
+
+
+def load(ref: ArtifactRef) -> Any:
+    """The contract behind a ref."""
+    return decode(*open_store(ref.store).read(ref.key))
+
+
+def _cache_key(stage: str) -> Callable:
+    def key_fn(context, parameters: dict) -> str | None:
+        key = stage_key(stage, parameters["params"], parameters["inputs"])
+        return key if open_store(parameters["store_url"]).exists(key) else None
+    return key_fn
+
+
+def cached_stage(stage: str, compute: Callable[[], Any], store_url: str, params: dict,
+                 inputs: dict[str, ArtifactRef]) -> ArtifactRef:
+    """Return the stage's artifact, computing and writing it only when the store lacks it (or it is corrupt)."""
+    store = open_store(store_url)
+    key = stage_key(stage, params, inputs)
+    if store.exists(key):
+        try:
+            store.read(key)  # verify checksums: a corrupt artifact is recomputed, never trusted
+            return ArtifactRef(key, stage, store_url)
+        except CorruptArtifact:
+            store.delete(key)
+    arrays, attributes = encode(compute())
+    attributes["provenance"] = {"params": params, "inputs": {k: r.key for k, r in inputs.items()}}
+    return store.write(key, stage, arrays, attributes)
+
+
+def _retry_on_io(task, task_run, state) -> bool:
+    try:
+        state.result()
+    except (OSError, TimeoutError):
+        return True
+    except Exception:
+        return False
+    return False
+
+
+def stage_task(stage: str) -> Callable:
+    """Decorate a stage function ``(store_url, inputs, params) -> ArtifactRef`` as a Prefect task with the
+    store-backed cache key and retries on I/O errors."""
+    return task(name=stage, cache_key_fn=_cache_key(stage), persist_result=True, retries=2,
+                retry_delay_seconds=1, retry_condition_fn=_retry_on_io)
