@@ -1,25 +1,12 @@
 """A real end-to-end flow: the synthetic demo through Prefect (ephemeral API), then again from the store."""
 
 import json
-import os
 import time
 
 import pytest
 
-from multithumbs.synth.scene import SceneConfig, config_to_json
-
-TINY = SceneConfig(name="tiny", num_people=2, num_shots=2, num_frames=10, seed=41, image_size=(180, 320),
-                   cut_angle_deg=30)
-
-
-@pytest.fixture(scope="module")
-def prefect(tmp_path_factory):
-    os.environ.setdefault("PREFECT_HOME", str(tmp_path_factory.mktemp("prefect")))
-    os.environ.setdefault("PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS", "90")
-    from prefect.testing.utilities import prefect_test_harness
-
-    with prefect_test_harness(server_startup_timeout=120):
-        yield
+from multithumbs.synth.scene import config_to_json
+from tests.flows.conftest import TINY
 
 
 def test_flow_reconstructs_then_serves_everything_from_the_store(prefect, tmp_path):
