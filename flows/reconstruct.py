@@ -61,6 +61,7 @@ def reconstruct_synthetic(scene: dict, out_dir: str, store_url: str, variant: st
         variant: method variant (``full``, an ablation or a baseline).
         method: parameter overrides, e.g. ``{"reid": {"max_distance": 0.8}}`` (:func:`tasks.method.method_config`).
     """
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
     refs = simulate_inputs(store_url, scene, out_dir)
     (result,) = run_method(store_url, [(refs, method_params(variant, method))])
     metrics = evaluate_result(result, refs["truth"])

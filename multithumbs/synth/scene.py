@@ -41,7 +41,7 @@ class SceneConfig:
         camera_height: (min, max) height of the cameras above the floor (m).
         dolly_speed: sideways speed of a moving camera (m/s).
         only_in_one_shot: persons (indices) present in one shot only, the shot given: ``((person, shot),)``.
-        dressed_alike: pairs of persons wearing the same clothes.
+        dressed_alike: pairs of persons dressed alike: the same neutral-grey uniform, skin, hair and build.
         crossing_pair: two persons whose paths cross at the scene centre at the first cut, or None.
         room_size: (width, depth, height) of the room (m).
         motion: how people move.
@@ -114,6 +114,11 @@ _GARMENTS = np.array([  # saturated and neutral clothing colours, distinct in hu
     [0.95, 0.55, 0.70], [0.30, 0.30, 0.55],
 ])
 
+# The dressed-alike pairs' uniform: a charcoal suit, darker trousers, black shoes (all neutral grey).
+_UNIFORM_TOP = np.array([0.30, 0.30, 0.30])
+_UNIFORM_BOTTOM = np.array([0.20, 0.20, 0.20])
+_UNIFORM_SHOES = np.array([0.08, 0.08, 0.08])
+
 
 @dataclass(frozen=True)
 class Clothing:
@@ -152,8 +157,11 @@ def _draw_clothing(rng: np.random.Generator, num_people: int, alike: tuple[tuple
         sleeves = top if rng.random() < 0.6 else _SKIN_TONES[rng.integers(len(_SKIN_TONES))]
         out.append(Clothing(_SKIN_TONES[rng.integers(len(_SKIN_TONES))], _HAIR[rng.integers(len(_HAIR))],
                             top, sleeves, bottom, np.array([0.12, 0.1, 0.09]) + 0.3 * rng.random() * np.ones(3)))
-    for a, b in alike:  # the second dresses exactly like the first, down to skin and hair
-        out[b] = out[a]
+    for a, b in alike:
+        # A uniform: both wear the same achromatic suit (no hue for a colour descriptor to key on, and grey
+        # stays grey however the light falls on it), with the same skin and hair, so appearance alone
+        # cannot tell them apart; the draws above are kept so everybody else dresses as before.
+        out[a] = out[b] = Clothing(out[a].skin, out[a].hair, _UNIFORM_TOP, _UNIFORM_TOP, _UNIFORM_BOTTOM, _UNIFORM_SHOES)
     return out
 
 
@@ -437,8 +445,12 @@ def config_to_json(config: SceneConfig) -> dict:
 
 
 def config_from_json(data: dict) -> SceneConfig:
-    """Inverse of the ``config`` entry of a synthetic ground truth's metadata."""
-    data = dict(data)
+    """Inverse of :func:`config_to_json`; missing fields take their defaults, unknown fields are an error."""
+    defaults = config_to_json(SceneConfig())
+    unknown = sorted(set(data) - set(defaults))
+    if unknown:
+        raise InputError(f"scene config: unknown field {unknown[0]!r}")
+    data = {**defaults, **data, "motion": {**defaults["motion"], **data.get("motion", {})}}
     data["motion"] = MotionConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in data["motion"].items()})
     for key in ("image_size", "camera_height", "room_size"):
         data[key] = tuple(data[key])
