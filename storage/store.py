@@ -196,8 +196,12 @@ class ArtifactStore:
         if self.fs.exists(self._group_path(key)):
             self.fs.rm(self._group_path(key), recursive=True)
 
-    def gc(self, keep: Iterable[str], dry_run: bool = False) -> list[str]:
-        """Delete committed artifacts not in ``keep`` and stale uncommitted leftovers; returns what went."""
+    def gc(self, keep: Iterable[str], dry_run: bool = False, stale_seconds: float = 3600.0) -> list[str]:
+        """Delete committed artifacts not in ``keep`` and uncommitted leftovers; returns what went.
+
+        Leftovers are groups without a commit record and, in ``tmp/``, work of writers that died (killed
+        mid-write) older than ``stale_seconds`` — younger ones may belong to a writer still running.
+        """
         keep = set(keep)
         removed = [k for k in self.keys() if k not in keep]
         if not dry_run:
@@ -212,6 +216,12 @@ class ArtifactStore:
                 if Path(path).name not in committed:
                     self.fs.rm(path, recursive=True)
                     removed.append(Path(path).name)
+            if self.local:
+                now = time.time()
+                for entry in os.scandir(f"{self.root}/tmp"):
+                    if now - entry.stat(follow_symlinks=False).st_mtime >= stale_seconds:
+                        self.fs.rm(entry.path, recursive=True)
+                        removed.append(f"tmp/{entry.name}")
         return removed
 
 
