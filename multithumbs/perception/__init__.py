@@ -1,0 +1,148 @@
+"""Real per-shot perception (DESIGN §1 stage 2): the people of each shot as :class:`PersonTracks`.
+
+``load_perception(spec, video_path, shots, trust=False)`` reads or computes them. The spec names a track
+source and optional refiners, joined by ``+``::
+
+    SPEC     := SOURCE ( "+" REFINER )*
+    SOURCE   := "phalp:" PATH                    4DHumans/PHALP results (.pkl, joblib); needs trust=True
+              | "hmr2" [ ":" OPTIONS ]           HMR2 on the video (the hmr2 package);
+                                                 OPTIONS: checkpoint=PATH,detector=PATH
+    REFINER  := "vitpose" [ ":" MODEL ]          2D keypoints with ViTPose in the tracks' boxes
+              | "sam" [ ":" MODEL ]              masks with SAM prompted by the tracks' boxes
+    MODEL    := a local folder (save_pretrained) or a hub name already in the Hugging Face cache;
+                defaults usyd-community/vitpose-base-simple and facebook/sam-vit-base
+
+Examples: ``phalp:results/demo_video.pkl``, ``hmr2:detector=/models/vitdet.pkl``,
+``phalp:out.pkl+vitpose+sam:/models/sam-vit-base``. ``+`` separates terms, so paths cannot contain it.
+After the source and refiners, appearance is described from the video's pixels
+(:mod:`multithumbs.perception.appearance`, PHALP's ``appe`` codes vet it). Nothing is downloaded.
+
+Modules: :mod:`.phalp` (import/export of PHALP results), :mod:`.camera` (HMR2's camera model),
+:mod:`.joints` (COCO-17 / OpenPose to SMPL-24), :mod:`.transformers_backends` (ViTPose, SAM),
+:mod:`.hmr2` (HMR2 adapter), :mod:`.appearance` (appearance from pixels).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from multithumbs.errors import InputError
+from multithumbs.types import PersonTracks, Shots
+
+SOURCES = ("phalp", "hmr2")
+REFINERS = ("vitpose", "sam")
+DEFAULT_MODELS = {"vitpose": "usyd-community/vitpose-base-simple", "sam": "facebook/sam-vit-base"}
+
+
+@dataclass(frozen=True)
+class SpecTerm:
+    """One term of a perception spec.
+
+    Attributes:
+        backend: backend name (one of ``SOURCES`` or ``REFINERS``).
+        argument: what follows the first ``:`` ("" when nothing does).
+    """
+
+    backend: str
+    argument: str = ""
+
+    def options(self) -> dict[str, str]:
+        """``key=value`` pairs of the argument, separated by commas."""
+        out = {}
+        for part in filter(None, self.argument.split(",")):
+            key, sep, value = part.partition("=")
+            if not sep or not key:
+                raise InputError(f"perception spec term {self.backend}:{self.argument}: expected key=value options, "
+                                 f"got {part!r}")
+            out[key.strip()] = value.strip()
+        return out
+
+
+def parse_spec(spec: str) -> list[SpecTerm]:
+    """The terms of a perception spec (module docstring: the grammar), checked.
+
+    Raises:
+        InputError: empty spec, unknown backend (the message lists the known ones), no track source first,
+            a second source, a missing path.
+    """
+    if not spec or not spec.strip():
+        raise InputError("perception spec: empty; known backends: " + ", ".join(SOURCES + REFINERS))
+    terms = []
+    for raw in spec.split("+"):
+        name, _, argument = raw.strip().partition(":")
+        name = name.strip().lower()
+        if name not in SOURCES + REFINERS:
+            raise InputError(f"perception spec {spec!r}: unknown backend {name!r}; known backends: "
+                             f"{', '.join(SOURCES + REFINERS)}")
+        terms.append(SpecTerm(name, argument.strip()))
+    if terms[0].backend not in SOURCES:
+        raise InputError(f"perception spec {spec!r}: {terms[0].backend} refines existing tracks; start with a track "
+                         f"source ({' or '.join(s + ':...' if s == 'phalp' else s for s in SOURCES)}), e.g. "
+                         f"phalp:RESULTS.pkl+{spec}")
+    if any(t.backend in SOURCES for t in terms[1:]):
+        raise InputError(f"perception spec {spec!r}: only one track source ({', '.join(SOURCES)}) is allowed")
+    if terms[0].backend == "phalp" and not terms[0].argument:
+        raise InputError(f"perception spec {spec!r}: phalp needs the results file, phalp:PATH")
+    return terms
+
+
+def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool = False, device: str = "cpu",
+                    appearance: bool = True, frame_offset: int = 0, progress=None) -> list[PersonTracks]:
+    """Per-shot :class:`PersonTracks` of a video from the perception ``spec`` (module docstring).
+
+    Args:
+        spec: e.g. ``phalp:RESULTS.pkl``, ``hmr2``, ``phalp:RESULTS.pkl+vitpose+sam``.
+        video_path: the video the results belong to (frames are read for refiners and appearance).
+        shots: the video's shots; tracks are split at its cuts.
+        trust: allow loading a pickle (``phalp:``), which runs code stored in the file.
+        device: torch device of learned backends.
+        appearance: describe appearance from pixels (off: appearance stays empty and invalid).
+        frame_offset: subtracted from PHALP frame numbers (1 when frames were numbered from 1).
+        progress: optional ``callable(stage: str, done: int, total: int)``.
+    Raises:
+        InputError: a one-line message naming the spec term, file, field or frame that is wrong.
+    """
+    from multithumbs.video import probe_video
+
+    terms = parse_spec(spec)
+    info = probe_video(video_path)
+    if info.num_frames != shots.num_frames:
+        raise InputError(f"{video_path}: {info.num_frames} frames but the shots cover {shots.num_frames}")
+    step = (lambda stage: (lambda done, total: progress(stage, done, total))) if progress else (lambda stage: None)
+    source = terms[0]
+    uv = uv_valid = None
+    if source.backend == "phalp":
+        from multithumbs.perception.phalp import load_phalp
+
+        imported = load_phalp(source.argument, shots, info.image_size, trust=trust, frame_offset=frame_offset)
+        tracks, boxes = list(imported.tracks), list(imported.boxes)
+        uv, uv_valid = imported.uv_appearance, imported.uv_valid
+    else:
+        from multithumbs.perception.hmr2 import run_hmr2
+
+        options = source.options()
+        unknown = set(options) - {"checkpoint", "detector"}
+        if unknown:
+            raise InputError(f"perception spec term hmr2: unknown option {sorted(unknown)[0]!r}; known: checkpoint, "
+                             f"detector")
+        tracks, boxes = run_hmr2(video_path, shots, options.get("checkpoint"), options.get("detector"), device,
+                                 progress=step("hmr2"))
+    for term in terms[1:]:
+        from multithumbs.perception.transformers_backends import load_sam, load_vitpose, refine_tracks
+
+        model = term.argument or DEFAULT_MODELS[term.backend]
+        if term.backend == "vitpose":
+            tracks = refine_tracks(tracks, boxes, video_path, keypoints=load_vitpose(model, device),
+                                   progress=step("vitpose"))
+        else:
+            tracks = refine_tracks(tracks, boxes, video_path, segmenter=load_sam(model, device),
+                                   progress=step("sam"))
+    if appearance:
+        from multithumbs.perception.appearance import fill_appearance
+
+        tracks = fill_appearance(tracks, video_path, uv, uv_valid, progress=step("appearance"))
+    return tracks
+
+
+__all__ = ["load_perception", "parse_spec", "SpecTerm", "SOURCES", "REFINERS", "DEFAULT_MODELS"]

@@ -1,0 +1,74 @@
+"""ViTPose and SAM adapters on tiny random models loaded the real way (local files only, HF_HUB_OFFLINE=1)."""
+
+import numpy as np
+import pytest
+
+from multithumbs.errors import InputError
+from multithumbs.perception.joints import COCO17_TO_SMPL24
+from multithumbs.perception.phalp import load_phalp
+from multithumbs.perception.transformers_backends import load_sam, load_vitpose, refine_tracks
+
+MAPPED = sorted(COCO17_TO_SMPL24.values())
+UNMAPPED = [j for j in range(24) if j not in MAPPED]
+
+
+@pytest.fixture(autouse=True)
+def _offline(monkeypatch, one_torch_thread):
+    monkeypatch.setenv("HF_HUB_OFFLINE", "1")
+
+
+def test_vitpose_keypoints_in_smpl_layout(tiny_models):
+    estimator = load_vitpose(tiny_models["vitpose"])
+    frame = np.random.default_rng(0).integers(0, 255, (96, 160, 3), dtype=np.uint8)
+    boxes = np.array([[10.0, 5.0, 50.0, 90.0], [80.0, 20.0, 120.0, 80.0]])
+    kp = estimator(frame, boxes)
+    assert kp.shape == (2, 24, 3)
+    assert np.all(kp[:, UNMAPPED] == 0)
+    assert np.all((kp[:, MAPPED, 2] >= 0) & (kp[:, MAPPED, 2] <= 1))
+    # Heatmap peaks map back into each box (ViTPose pads boxes by 1.25).
+    for box, person in zip(boxes, kp):
+        centre, half = (box[:2] + box[2:]) / 2, (box[2:] - box[:2]) / 2 * 1.25 * np.array([1.0, 1.0])
+        side = np.maximum(half, half[::-1] * np.array([48 / 64, 64 / 48]))
+        assert np.all(np.abs(person[MAPPED, :2] - centre) <= 1.5 * side)
+    assert estimator(frame, np.zeros((0, 4))).shape == (0, 24, 3)
+
+
+def test_sam_masks_per_box(tiny_models):
+    segmenter = load_sam(tiny_models["sam"])
+    frame = np.random.default_rng(1).integers(0, 255, (96, 160, 3), dtype=np.uint8)
+    masks = segmenter(frame, np.array([[10.0, 5.0, 50.0, 90.0], [80.0, 20.0, 120.0, 80.0]]))
+    assert masks.shape == (2, 96, 160) and masks.dtype == bool
+    assert segmenter(frame, np.zeros((0, 4))).shape == (0, 96, 160)
+
+
+def test_models_load_only_from_local_files(tmp_path, tiny_models):
+    with pytest.raises(InputError, match="not loadable from a local folder or the Hugging Face cache") as e:
+        load_vitpose(tmp_path / "nothing")
+    assert "\n" not in str(e.value)
+    with pytest.raises(InputError, match="SAM model"):
+        load_sam("facebook/not-in-the-cache-model")
+    with pytest.raises(InputError, match="predicts 5 keypoints"):
+        load_vitpose(tiny_models["vitpose5"])
+
+
+def test_refine_tracks_end_to_end(tiny_models, scene, results_file, video_file):
+    video, shots = scene
+    imported = load_phalp(results_file, shots, video.truth.world.image_size, trust=True)
+    first = imported.tracks[:1]  # one shot keeps the test short
+    refined = refine_tracks(first, imported.boxes[:1], video_file, keypoints=load_vitpose(tiny_models["vitpose"]),
+                            segmenter=load_sam(tiny_models["sam"]))
+    for before, after in zip(first, refined):
+        v = before.valid
+        assert after.keypoints2d.shape == before.keypoints2d.shape
+        assert np.all(after.keypoints2d[v][:, UNMAPPED, 2] == 0)
+        assert not np.array_equal(after.keypoints2d[v], before.keypoints2d[v])      # replaced by ViTPose
+        np.testing.assert_array_equal(after.keypoints2d[~v], before.keypoints2d[~v])  # untouched where not seen
+        np.testing.assert_array_equal(after.masks[~v], before.masks[~v])
+        np.testing.assert_array_equal(after.global_orient, before.global_orient)
+
+
+def test_refine_tracks_needs_the_whole_video(tiny_models, scene, results_file):
+    video, shots = scene
+    imported = load_phalp(results_file, shots, video.truth.world.image_size, trust=True)
+    with pytest.raises(InputError, match="ends at frame"):
+        refine_tracks(imported.tracks, imported.boxes, video.frames[:10], keypoints=load_vitpose(tiny_models["vitpose"]))
