@@ -220,6 +220,7 @@ def _register(module: str) -> None:
 
 # Commands of the library's areas: one line per area, sorted.
 _register("multithumbs.datasets.commands")
+_register("multithumbs.scene.commands")
 _register("multithumbs.viz.commands")
 # end of area commands
 

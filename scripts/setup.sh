@@ -11,3 +11,6 @@ PIP=(.venv/bin/python -m pip --disable-pip-version-check -q)
 "${PIP[@]}" install -e ".[dev]"
 # scenedetect asks for opencv-python (GUI), which clobbers the headless cv2: install it alone.
 "${PIP[@]}" install --no-deps scenedetect==0.7.2
+# Depth-Anything-3 (a learned shared-space backend, tested on a tiny random model): its torchvision
+# requirement does not import beside the CPU torch, and the adapter does not need it.
+"${PIP[@]}" install --no-deps depth-anything-3==0.1.1

@@ -1,5 +1,8 @@
 """Tasks that produce a video's per-shot inputs: shots, people, camera trajectories, shared spaces.
 
+From a real video: :func:`detect_video_shots` (scenedetect), :func:`perceive_people` (a perception spec,
+e.g. a 4DHumans/PHALP results file), :func:`track_shot_camera` and :func:`shared_space` (pycolmap).
+
 ``simulate_inputs`` synthesises a scene and SIMULATES the inputs from its ground truth (the benchmark's
 stand-ins for 4DHumans, DROID-SLAM and VGGT; labelled as simulated in every artifact and report).
 """
@@ -7,15 +10,16 @@ stand-ins for 4DHumans, DROID-SLAM and VGGT; labelled as simulated in every arti
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
+import numpy as np
 from prefect import task
 from prefect.cache_policies import NO_CACHE
 
 from storage.codecs import encode
 from storage.keys import artifact_key
-from storage.store import ArtifactRef
-from tasks.artifacts import STAGE_VERSIONS, open_store
+from storage.store import ArtifactRef, CorruptArtifact
+from tasks.artifacts import STAGE_VERSIONS, cached_stage, load, open_store, stage_key, stage_task
 
 
 @task(name="simulate_inputs", cache_policy=NO_CACHE, retries=1)
@@ -61,3 +65,137 @@ def simulate_inputs(store_url: str, scene: dict, out_dir: str | None = None) -> 
         attributes["provenance"] = {"params": {**params, "part": name}, "simulated": True}
         refs[name] = store.write(keys[name], "simulate_inputs", arrays, attributes)
     return refs
+
+
+# ----------------------------------------------------------------------------------------------------
+# Inputs from a real video: shots (scenedetect), perception (a spec), camera trajectories and shared
+# spaces (pycolmap). Keys hash the video's bytes, never its path: a moved or renamed video is still cached.
+
+
+def _parts(stage: str, compute: Callable[[], list], store_url: str, params: dict, inputs: dict[str, ArtifactRef],
+           count: int) -> list[ArtifactRef]:
+    """Like :func:`tasks.artifacts.cached_stage` for a stage with ``count`` outputs (one artifact each)."""
+    store = open_store(store_url)
+    keys = [stage_key(stage, {**params, "part": k}, inputs) for k in range(count)]
+    if all(store.exists(k) for k in keys):
+        try:
+            for key in keys:
+                store.read(key)
+            return [ArtifactRef(k, stage, store_url) for k in keys]
+        except CorruptArtifact:
+            pass
+    values = compute()
+    if len(values) != count:
+        raise RuntimeError(f"stage {stage}: computed {len(values)} parts, expected {count}")
+    refs = []
+    for part, (key, value) in enumerate(zip(keys, values)):
+        if store.exists(key):
+            try:
+                store.read(key)
+                refs.append(ArtifactRef(key, stage, store_url))
+                continue
+            except CorruptArtifact:
+                store.delete(key)
+        arrays, attributes = encode(value)
+        attributes["provenance"] = {"params": {**params, "part": part}, "inputs": {k: r.key for k, r in inputs.items()}}
+        refs.append(store.write(key, stage, arrays, attributes))
+    return refs
+
+
+def spec_fingerprint(spec: str) -> str:
+    """The perception spec with every file it names replaced by the digest of the file's bytes."""
+    from storage.keys import file_digest
+
+    def digest(text: str) -> str:
+        return f"sha256:{file_digest(text)}" if text and Path(text).is_file() else text
+
+    out = []
+    for term in spec.split("+"):
+        backend, sep, argument = term.partition(":")
+        parts = [f"{k}={digest(v)}" if eq else digest(k)
+                 for k, eq, v in (p.partition("=") for p in argument.split(","))] if argument else []
+        out.append(backend + sep + ",".join(parts))
+    return "+".join(out)
+
+
+@stage_task("shots")
+def detect_video_shots(store_url: str, inputs: dict[str, ArtifactRef], params: dict, video_path: str) -> ArtifactRef:
+    """Cuts of the video by scenedetect (params: ``video`` digest, ``config`` of :class:`ShotConfig`)."""
+    def compute():
+        from multithumbs.scene.shots import ShotConfig, detect_shots
+
+        return detect_shots(video_path, ShotConfig(**params["config"]))
+    return cached_stage("shots", compute, store_url, params, inputs)
+
+
+@task(name="perception", cache_policy=NO_CACHE, retries=1)
+def perceive_people(store_url: str, inputs: dict[str, ArtifactRef], params: dict, video_path: str,
+                    spec: str) -> list[ArtifactRef]:
+    """Per-shot :class:`PersonTracks` from the perception ``spec`` (params: ``video`` digest, ``spec``
+    fingerprint, ``trust``); one artifact per shot."""
+    shots = load(inputs["shots"])
+
+    def compute():
+        from multithumbs.perception import load_perception
+
+        return load_perception(spec, video_path, shots, trust=params["trust"])
+    return _parts("perception", compute, store_url, params, inputs, shots.num_shots)
+
+
+def _union_masks(tracks, frames: list[int]) -> dict[int, np.ndarray]:
+    """Video frame -> ``(H, W)`` bool union of the shot's people masks."""
+    from multithumbs.types import unpack_mask
+
+    h, w = tracks.image_size
+    out = {}
+    for f in frames:
+        local = f - tracks.start_frame
+        union = np.zeros((h, w), bool)
+        for p in range(tracks.num_people):
+            if tracks.valid[p, local]:
+                union |= unpack_mask(tracks.masks[p, local], w)
+        out[f] = union
+    return out
+
+
+@stage_task("trajectory")
+def track_shot_camera(store_url: str, inputs: dict[str, ArtifactRef], params: dict, video_path: str) -> ArtifactRef:
+    """The camera trajectory of one shot with people masked out (inputs: ``shots``, ``tracks``; params:
+    ``video`` digest, ``shot``, ``K``, ``config`` of :class:`TrackingConfig`)."""
+    def compute():
+        from multithumbs.scene.tracking import TrackingConfig, track_camera
+        from multithumbs.video import iter_frames
+
+        shots, tracks = load(inputs["shots"]), load(inputs["tracks"])
+        a, b = shots.ranges[params["shot"]]
+        frames = np.stack(list(iter_frames(video_path, a, b)))
+        masks = _union_masks(tracks, list(range(a, b)))
+        return track_camera(frames, np.asarray(params["K"]), np.stack([masks[f] for f in range(a, b)]),
+                            params["shot"], a, _config(TrackingConfig, params["config"]))
+    return cached_stage("trajectory", compute, store_url, params, inputs)
+
+
+@stage_task("space")
+def shared_space(store_url: str, inputs: dict[str, ArtifactRef], params: dict, video_path: str) -> ArtifactRef:
+    """The shared space at one cut (inputs: ``shots``, ``tracks_before``, ``tracks_after``,
+    ``trajectory_before``, ``trajectory_after``; params: ``video`` digest, ``cut``, ``K``, ``config`` of
+    :class:`TwoViewConfig`, ``neighbour_frames``)."""
+    def compute():
+        from multithumbs.scene.geometry import cut_frames_needed, cut_shared_space
+        from multithumbs.scene.two_view import TwoViewConfig
+        from multithumbs.video import read_frames
+
+        shots, c = load(inputs["shots"]), params["cut"]
+        static = all(load(inputs[k]).source == "static" for k in ("trajectory_before", "trajectory_after"))
+        needed = cut_frames_needed(shots, c, static, params["neighbour_frames"])
+        frames = dict(zip(needed, read_frames(video_path, needed)))
+        before, after = load(inputs["tracks_before"]), load(inputs["tracks_after"])
+        masks = {**_union_masks(before, [f for f in needed if f < shots.cut_frames[c]]),
+                 **_union_masks(after, [f for f in needed if f >= shots.cut_frames[c]])}
+        K_all = np.broadcast_to(np.asarray(params["K"]), (shots.num_frames, 3, 3))
+        return cut_shared_space(shots, c, frames, K_all, masks, _config(TwoViewConfig, params["config"]))
+    return cached_stage("space", compute, store_url, params, inputs)
+
+
+def _config(cls, values: dict):
+    return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
