@@ -26,7 +26,7 @@ def _benchmark_run(scenes: list[dict], variants: list[str], store_url: str) -> d
     refs = [f.result() for f in [simulate_inputs.submit(store_url, scene) for scene in scenes]]
     update_progress_artifact(progress, 25.0)
     jobs = [(r, method_params(v)) for r in refs for v in variants]
-    results = run_method(store_url, jobs)
+    results = [out["result"] for out in run_method(store_url, jobs)]
     update_progress_artifact(progress, 85.0)
     futures = [evaluate_result.submit(res, job[0]["truth"]) for res, job in zip(results, jobs)]
     scores = []

@@ -10,11 +10,12 @@ from typing import Any
 from prefect import flow
 from prefect.artifacts import create_progress_artifact, create_table_artifact, update_progress_artifact
 
-from flows.method import run_method
-from flows.reconstruct import METRIC_ORDER, SIMULATED_BACKENDS, publish_outputs
+from flows.method import run_method, space_refs
+from flows.reconstruct import METRIC_ORDER, SIMULATED_BACKENDS, publish_report
 from flows.runners import make_task_runner
 from tasks.evaluation import evaluate_result
 from tasks.inputs import simulate_inputs
+from tasks.outputs import write_outputs
 from tasks.method import method_params
 
 
@@ -50,14 +51,19 @@ def _dataset_run(items: list[dict[str, Any]], out_root: str, store_url: str, var
     refs = [f.result() for f in input_futures]
     update_progress_artifact(progress, 30.0)
     params = method_params(variant, method)
-    results = run_method(store_url, [(r, params) for r in refs])
+    outs = run_method(store_url, [(r, params) for r in refs])
+    update_progress_artifact(progress, 70.0)
+    metric_futures = [evaluate_result.submit(out["result"], r["truth"]) for out, r in zip(outs, refs)]
+    metrics = [f.result() for f in metric_futures]
     update_progress_artifact(progress, 80.0)
-    metric_futures = [evaluate_result.submit(result, r["truth"]) for result, r in zip(results, refs)]
+    output_futures = [write_outputs.submit(str(root / name), name, variant, str(root / name / "video.mp4"), out,
+                                           space_refs(r), r["truth"], m, {"backends": SIMULATED_BACKENDS,
+                                                                          "variant": variant})
+                      for name, out, r, m in zip(names, outs, refs, metrics)]
     rows = []
-    for name, result, future in zip(names, results, metric_futures):
-        metrics = future.result()
-        publish_outputs(root / name, name, variant, result, metrics, SIMULATED_BACKENDS)
-        rows.append({"video": name, **{k: metrics.get(k) for k in METRIC_ORDER}, "result": result.key})
+    for name, out, m, future in zip(names, outs, metrics, output_futures):
+        publish_report(name, variant, future.result(), m)
+        rows.append({"video": name, **{k: m.get(k) for k in METRIC_ORDER}, "result": out["result"].key})
     update_progress_artifact(progress, 100.0)
     create_table_artifact(key="dataset-results", table=rows, description=f"{len(rows)} videos ({variant})")
     return rows

@@ -7,6 +7,7 @@ the same video twice) are submitted once, so a benchmark computes each shared st
 
 from __future__ import annotations
 
+import time
 from typing import Sequence
 
 from storage.store import ArtifactRef
@@ -31,12 +32,28 @@ def num_shots(inputs: Inputs) -> int:
     return sum(1 for name in inputs if name.startswith("tracks_"))
 
 
-def run_method(store_url: str, jobs: Sequence[tuple[Inputs, dict[str, dict]]]) -> list[ArtifactRef]:
-    """The method on every job ``(inputs, params)`` -> its ``WorldResult`` ref.
+def space_refs(inputs: Inputs) -> list[ArtifactRef]:
+    """The shared-space refs of every cut, in cut order."""
+    return [inputs[f"space_{c}"] for c in range(num_shots(inputs) - 1)]
+
+
+def run_method(store_url: str, jobs: Sequence[tuple[Inputs, dict[str, dict]]],
+               timings: dict[str, float] | None = None) -> list[dict[str, ArtifactRef]]:
+    """The method on every job ``(inputs, params)``.
 
     ``inputs`` holds ``shots``, ``tracks_k``, ``trajectory_k`` for every shot and ``space_c`` for every cut;
-    ``params`` is :func:`tasks.method.method_params` of the job's variant.
+    ``params`` is :func:`tasks.method.method_params` of the job's variant. Returns per job the refs of its
+    ``aligned_c``, ``placement``, ``identities`` and ``result`` (the ``WorldResult``); ``timings`` (if given)
+    receives the wall seconds of each stage's wave.
     """
+    clock = time.perf_counter()
+
+    def lap(stage: str) -> None:
+        nonlocal clock
+        if timings is not None:
+            timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - clock
+        clock = time.perf_counter()
+
     align_calls, owners = [], []
     for j, (inputs, params) in enumerate(jobs):
         if params["propagate"]["independent"]:
@@ -48,14 +65,20 @@ def run_method(store_url: str, jobs: Sequence[tuple[Inputs, dict[str, dict]]]) -
     aligned: list[dict[str, ArtifactRef]] = [{} for _ in jobs]
     for (j, c), ref in zip(owners, _wave(align_cut, store_url, align_calls)):
         aligned[j][f"aligned_{c}"] = ref
+    lap("alignment")
 
     per_shot = [{k: v for k, v in inputs.items() if k == "shots" or k.startswith(("tracks_", "trajectory_"))}
                 for inputs, _ in jobs]
     placements = _wave(propagate_shots, store_url,
                        [({**per_shot[j], **aligned[j]}, params["propagate"]) for j, (_, params) in enumerate(jobs)])
+    lap("propagation")
     tracks = [{k: v for k, v in shot_inputs.items() if not k.startswith("trajectory_")} for shot_inputs in per_shot]
     identities = _wave(reidentify_people, store_url,
                        [({**tracks[j], "placement": placements[j]}, params["reid"]) for j, (_, params) in enumerate(jobs)])
-    return _wave(post_process_world, store_url,
-                 [({**tracks[j], **aligned[j], "placement": placements[j], "identities": identities[j]}, params["post"])
-                  for j, (_, params) in enumerate(jobs)])
+    lap("re-identification")
+    results = _wave(post_process_world, store_url,
+                    [({**tracks[j], **aligned[j], "placement": placements[j], "identities": identities[j]}, params["post"])
+                     for j, (_, params) in enumerate(jobs)])
+    lap("post-processing")
+    return [{**aligned[j], "placement": placements[j], "identities": identities[j], "result": results[j]}
+            for j in range(len(jobs))]

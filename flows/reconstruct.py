@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import json
+import time
 from pathlib import Path
 from typing import Any
 
@@ -10,11 +10,11 @@ from prefect import flow
 from prefect.artifacts import create_markdown_artifact, create_table_artifact
 from prefect.task_runners import ThreadPoolTaskRunner
 
-from flows.method import run_method
+from flows.method import run_method, space_refs
 from storage.store import ArtifactRef
-from tasks.artifacts import load
 from tasks.evaluation import evaluate_result
 from tasks.inputs import simulate_inputs
+from tasks.outputs import write_outputs
 from tasks.method import method_params
 
 METRIC_ORDER = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "ate", "ids", "pck", "jitter", "fs")
@@ -25,27 +25,28 @@ def metrics_rows(metrics: dict[str, Any]) -> list[dict[str, Any]]:
     return [{"metric": k, "value": metrics[k]} for k in METRIC_ORDER if k in metrics]
 
 
-def publish_outputs(out_dir: str | Path, name: str, variant: str, result: ArtifactRef, metrics: dict[str, Any] | None,
-                    backends: dict[str, str]) -> None:
-    """Write ``result.npz`` (and ``metrics.json``) to ``out_dir`` and the report to the dashboard."""
-    from multithumbs.io import save_result
+def publish_outputs(out_dir: str | Path, name: str, variant: str, video_path: str, method_refs: dict[str, ArtifactRef],
+                    spaces: list[ArtifactRef], truth: ArtifactRef | None, metrics: dict[str, Any] | None,
+                    run_info: dict[str, Any]) -> dict[str, str]:
+    """Write the video's outputs (:func:`tasks.outputs.write_outputs`) and put its report and metrics table
+    in the dashboard."""
+    files = write_outputs(str(out_dir), name, variant, video_path, method_refs, spaces, truth, metrics, run_info)
+    publish_report(name, variant, files, metrics)
+    return files
 
-    out = Path(out_dir)
-    save_result(out / "result.npz", load(result), metadata={"variant": variant, "name": name, "artifact": result.key,
-                                                             "backends": backends})
-    lines = [f"# {name} — {variant}", "", "Backends: " + ", ".join(f"{k} {v}" for k, v in backends.items()), "",
-             f"Result artifact `{result.key}`.", ""]
+
+def publish_report(name: str, variant: str, files: dict[str, str], metrics: dict[str, Any] | None) -> None:
+    """The video's metrics table and markdown report as dashboard artifacts."""
     if metrics is not None:
-        (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True))
-        lines += ["| metric | value |", "|---|---|",
-                  *(f"| {r['metric']} | {r['value']:.3f} |" for r in metrics_rows(metrics) if r["value"] is not None)]
         create_table_artifact(key="metrics", table=metrics_rows(metrics), description=f"{name} ({variant})")
-    create_markdown_artifact(key="reconstruction-report", markdown="\n".join(lines) + "\n",
-                             description=f"{name} ({variant})")
+    if "report" in files:
+        create_markdown_artifact(key="reconstruction-report", markdown=Path(files["report"]).read_text(),
+                                 description=f"{name} ({variant})")
 
 
-SIMULATED_BACKENDS = {"shots": "ground truth", "perception": "SIMULATED", "camera tracking": "SIMULATED",
-                      "shared space": "SIMULATED"}
+SIMULATED_BACKENDS = {"shots": "ground truth cuts", "perception": "SIMULATED (synth/perception.py)",
+                      "camera tracking": "SIMULATED (stands in for DROID-SLAM)",
+                      "shared space": "SIMULATED (stands in for VGGT)"}
 
 
 @flow(name="reconstruct-synthetic", task_runner=ThreadPoolTaskRunner(max_workers=2))
@@ -62,8 +63,13 @@ def reconstruct_synthetic(scene: dict, out_dir: str, store_url: str, variant: st
         method: parameter overrides, e.g. ``{"reid": {"max_distance": 0.8}}`` (:func:`tasks.method.method_config`).
     """
     Path(out_dir).mkdir(parents=True, exist_ok=True)
+    timings: dict[str, float] = {}
+    start = time.perf_counter()
     refs = simulate_inputs(store_url, scene, out_dir)
-    (result,) = run_method(store_url, [(refs, method_params(variant, method))])
-    metrics = evaluate_result(result, refs["truth"])
-    publish_outputs(out_dir, scene.get("name", "scene"), variant, result, metrics, SIMULATED_BACKENDS)
+    timings["synthesis and simulated inputs"] = time.perf_counter() - start
+    (method_refs,) = run_method(store_url, [(refs, method_params(variant, method))], timings)
+    metrics = evaluate_result(method_refs["result"], refs["truth"])
+    publish_outputs(out_dir, scene.get("name", "scene"), variant, str(Path(out_dir) / "video.mp4"), method_refs,
+                    space_refs(refs),
+                    refs["truth"], metrics, {"backends": SIMULATED_BACKENDS, "timings": timings, "variant": variant})
     return metrics

@@ -46,7 +46,8 @@ def synth(
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace existing outputs in --out."),
     smpl_model: Optional[Path] = SMPL_OPTION,
 ) -> None:
-    """Synthesise a multi-shot scene: video.mp4, ground_truth.npz and contact_sheet.png."""
+    """Synthesise a multi-shot scene: video.mp4, ground_truth.npz, contact_sheet.png and perception.pkl
+    (SIMULATED per-shot perception in 4DHumans/PHALP's results format, for ``multithumbs run``)."""
     from multithumbs.body.model import load_body_model
     from multithumbs.synth.files import prepare_output_dir, write_synthetic
     from multithumbs.synth.scene import SceneConfig, synthesize
@@ -66,6 +67,12 @@ def synth(
         video = synthesize(config, body, progress=lambda done, total: bar.update(task, completed=done))
     paths = write_synthetic(out_dir, video)
     truth = video.truth
+    from multithumbs.perception.phalp import export_phalp
+    from multithumbs.synth.perception import simulate_perception
+
+    # SIMULATED perception in 4DHumans/PHALP's format: `multithumbs run video.mp4 --perception phalp:...`.
+    paths["perception"] = export_phalp(out_dir / "perception.pkl", simulate_perception(video, body),
+                                       truth.world.shots(), overwrite=True)
     console.print(f"[bold]{config.name or 'scene'}[/]: {config.num_people} people, {config.num_shots} shots, "
                   f"{config.num_frames} frames, cuts at {truth.world.cut_frames.tolist()}, "
                   f"{int(truth.visible.sum())} visible person-frames")
@@ -125,6 +132,128 @@ def evaluate_cmd(
     Console().print(table)
 
 
+def _flow_environment() -> None:
+    """Settings of the embedded Prefect API (ephemeral server, SQLite) kept out of the home folder."""
+    import os
+
+    cache = Path(os.environ.get("MULTITHUMBS_CACHE", Path.home() / ".cache" / "multithumbs"))
+    os.environ.setdefault("PREFECT_HOME", str(cache / "prefect"))
+    os.environ.setdefault("PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS", "90")
+    os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
+    os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
+
+
+def _method_overrides(assignments: list[str]) -> dict:
+    """``section.field=value`` (JSON values) -> the flow's ``method`` overrides."""
+    overrides: dict = {}
+    for text in assignments:
+        name, sep, value = text.partition("=")
+        if not sep or not name:
+            raise InputError(f"--set {text!r}: expected section.field=value, e.g. reid.max_distance=0.8")
+        try:
+            parsed = json.loads(value)
+        except ValueError:
+            parsed = value
+        section, dot, field = name.partition(".")
+        if dot:
+            overrides.setdefault(section, {})[field] = parsed
+        else:
+            overrides[section] = parsed
+    return overrides
+
+
+RUN_OUTPUTS = ("result.npz", "metrics.json", "overlay.mp4", "report.md", "outputs.json")
+
+
+@app.command("run")
+def run_cmd(
+    video: Path = typer.Argument(..., help="The edited video."),
+    out: Path = typer.Option(..., "--out", help="Output folder (created if missing)."),
+    perception: str = typer.Option(..., "--perception", help="Per-shot people: 'phalp:RESULTS.pkl' (4DHumans/PHALP "
+                                   "results), 'hmr2', optionally '+vitpose' '+sam' refiners."),
+    trust_pickle: bool = typer.Option(False, "--trust-pickle", help="Allow loading pickled results (pickles run "
+                                      "code when loaded: only for files you trust)."),
+    intrinsics: Optional[str] = typer.Option(None, "--intrinsics", help="fx,fy,cx,cy of the camera in pixels "
+                                             "(default: a 60 degree horizontal field of view)."),
+    truth: Optional[Path] = typer.Option(None, "--truth", help="Ground truth .npz to score against."),
+    variant: str = typer.Option("full", "--variant", help="Method variant (an ablation or baseline)."),
+    settings: list[str] = typer.Option([], "--set", help="Method parameter, e.g. --set reid.max_distance=0.8."),
+    store: Optional[str] = typer.Option(None, "--store", help="Artifact store URL (default: OUT/store)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Reuse an output folder that holds results."),
+    as_json: bool = typer.Option(False, "--json", help="Print the run's summary as JSON."),
+) -> None:
+    """Reconstruct the people of a video across its cuts through the Prefect flow (embedded API): shots,
+    camera trajectories and shared spaces from the pixels, people from --perception."""
+    _flow_environment()  # before anything imports prefect: its settings are read at import
+    from multithumbs.perception import parse_spec
+    from multithumbs.video import probe_video
+    from tasks.method import method_config
+
+    # Every check a user can fail runs before Prefect starts, so mistakes cost a second, not a minute.
+    info = probe_video(video)
+    terms = parse_spec(perception)
+    for term in terms:
+        if term.backend == "phalp":
+            path = Path(term.argument)
+            if not path.is_file():
+                raise InputError(f"--perception {perception!r}: {path}: no such results file")
+            if not trust_pickle:
+                raise InputError(f"--perception {path}: a pickle runs code when loaded; pass --trust-pickle if you "
+                                 f"trust this file")
+    method = _method_overrides(settings)
+    method_config(variant, method)
+    K = None
+    if intrinsics is not None:
+        try:
+            K = [float(v) for v in intrinsics.split(",")]
+        except ValueError:
+            raise InputError(f"--intrinsics {intrinsics!r}: expected four numbers fx,fy,cx,cy") from None
+        from flows.video import intrinsics_matrix
+
+        intrinsics_matrix(K, info.width, info.height)
+    if truth is not None and not truth.is_file():
+        raise InputError(f"--truth {truth}: no such file")
+    out_dir = _prepare_run_dir(out, overwrite)
+    from flows.video import reconstruct_video
+
+    with console.status(f"reconstructing {video.name}: {info.num_frames} frames, {info.width}x{info.height}"):
+        summary = reconstruct_video(str(video.resolve()), str(out_dir.resolve()),
+                                    store or str((out_dir / "store").resolve()), perception, trust_pickle, K,
+                                    variant, method, None if truth is None else str(truth.resolve()))
+    if as_json:
+        print(json.dumps(_jsonable(summary), indent=2, sort_keys=True))
+        return
+    table = Table(title=f"{video.name}: {summary['num_shots']} shots ({variant})")
+    table.add_column("")
+    table.add_column("", justify="right")
+    for stage, backend in summary["backends"].items():
+        table.add_row(stage, backend)
+    for stage, seconds in summary["timings"].items():
+        table.add_row(f"{stage} (s)", f"{seconds:.1f}")
+    for key, value in (summary["metrics"] or {}).items():
+        if key in ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "ate", "ids", "pck", "jitter", "fs"):
+            table.add_row(key, "nan" if value is None else f"{value:.3f}")
+    Console().print(table)
+    console.print(f"outputs in {out_dir}: " + ", ".join(sorted(Path(p).name for p in summary["files"].values())))
+
+
+def _prepare_run_dir(out: Path, overwrite: bool) -> Path:
+    import os
+
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{out}: cannot create the output folder ({exc.strerror})") from None
+    if not os.access(out, os.W_OK):
+        raise InputError(f"{out}: output folder is not writable")
+    existing = [n for n in RUN_OUTPUTS if (out / n).exists()]
+    if existing and not overwrite:
+        raise InputError(f"{out / existing[0]}: already exists (pass --overwrite to replace it)")
+    return out
+
+
 @app.command("demo")
 def demo_cmd(
     out: Path = typer.Option(Path("demo"), "--out", help="Output folder."),
@@ -134,23 +263,20 @@ def demo_cmd(
     overwrite: bool = typer.Option(False, "--overwrite", help="Reuse an output folder that holds a demo."),
 ) -> None:
     """Synthesise a standard-suite scene and reconstruct it through the real Prefect flow (embedded API)."""
-    import os
-
     from multithumbs.pipeline import variant_config
     from multithumbs.synth.files import prepare_output_dir
     from multithumbs.synth.scene import config_to_json
     from multithumbs.synth.suite import suite_scene
 
+    _flow_environment()
     config = suite_scene("standard", scene)
     variant_config(variant)
     out_dir = prepare_output_dir(out, overwrite)
-    cache = Path(os.environ.get("MULTITHUMBS_CACHE", Path.home() / ".cache" / "multithumbs"))
-    os.environ.setdefault("PREFECT_HOME", str(cache / "prefect"))
-    os.environ.setdefault("PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS", "90")
     from flows.reconstruct import reconstruct_synthetic
 
-    metrics = reconstruct_synthetic(config_to_json(config), str(out_dir.resolve()),
-                                    store or str((out_dir / "store").resolve()), variant)
+    with console.status(f"{scene}: synthesising and reconstructing (a first run takes about a minute)"):
+        metrics = reconstruct_synthetic(config_to_json(config), str(out_dir.resolve()),
+                                        store or str((out_dir / "store").resolve()), variant)
     table = Table(title=f"{scene} ({variant}) — perception, shared space and camera tracking SIMULATED")
     table.add_column("metric")
     table.add_column("value", justify="right")
@@ -158,7 +284,8 @@ def demo_cmd(
         value = metrics.get(key)
         table.add_row(key, "nan" if value is None else f"{value:.3f}")
     Console().print(table)
-    console.print(f"outputs in {out_dir}: video.mp4, ground_truth.npz, contact_sheet.png, result.npz, metrics.json")
+    console.print(f"outputs in {out_dir}: video.mp4, ground_truth.npz, result.npz, metrics.json, overlay.mp4, "
+                  f"trajectory.png, report.md, scene.glb, scene.rrd, smpl/, bvh/, colmap/ (list: outputs.json)")
 
 
 @app.command("bench")

@@ -7,6 +7,7 @@ file: a missing file, a file OpenCV cannot decode, a video of zero frames, a fra
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator, Sequence
@@ -15,6 +16,9 @@ import cv2
 import numpy as np
 
 from multithumbs.errors import InputError
+
+# FFmpeg prints its own complaints about broken files to stderr; ours is the one-line InputError.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
 
 @dataclass(frozen=True)
@@ -46,6 +50,8 @@ def _open(path: Path) -> cv2.VideoCapture:
         raise InputError(f"{path}: no such video file")
     if not path.is_file():
         raise InputError(f"{path}: not a file")
+    if path.stat().st_size == 0:
+        raise InputError(f"{path}: the file is empty")
     capture = cv2.VideoCapture(str(path))
     if not capture.isOpened():
         raise InputError(f"{path}: not a video OpenCV can read")

@@ -199,3 +199,17 @@ def shared_space(store_url: str, inputs: dict[str, ArtifactRef], params: dict, v
 
 def _config(cls, values: dict):
     return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+
+
+@task(name="ground_truth", cache_policy=NO_CACHE, retries=1)
+def import_ground_truth(store_url: str, truth_path: str) -> ArtifactRef:
+    """A ground-truth ``.npz`` as an artifact keyed by its bytes (for evaluation and the outputs' truth panel)."""
+    from storage.keys import file_digest
+
+    params = {"file": file_digest(truth_path)}
+
+    def compute():
+        from multithumbs.io import load_ground_truth
+
+        return load_ground_truth(truth_path)[0]
+    return cached_stage("ground_truth", compute, store_url, params, {})

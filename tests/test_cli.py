@@ -68,3 +68,39 @@ def test_usage_errors_are_one_line_with_exit_code_2(args, needle):
     assert out.returncode == 2 and "Traceback" not in out.stderr
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0]
+
+
+@pytest.fixture(scope="module")
+def tiny_video(tmp_path_factory):
+    """A two-shot synthetic video with its SIMULATED perception file (as `multithumbs synth` writes them)."""
+    out_dir = tmp_path_factory.mktemp("run") / "scene"
+    out = run_cli("synth", "--out", out_dir, "--people", "2", "--shots", "2", "--frames", "8",
+                  "--width", "320", "--height", "180", "--seed", "5")
+    assert out.returncode == 0, out.stderr
+    assert (out_dir / "perception.pkl").stat().st_size > 0
+    return out_dir
+
+
+def test_run_rejects_bad_input_before_starting(tmp_path, tiny_video):
+    """Each case: one line naming the input, exit code 2, nothing written."""
+    video, pkl = tiny_video / "video.mp4", f"phalp:{tiny_video / 'perception.pkl'}"
+    empty = tmp_path / "empty.mp4"
+    empty.write_bytes(b"")
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    cases = [
+        (["run", tmp_path / "missing.mp4", "--out", tmp_path / "o", "--perception", pkl], "missing.mp4"),
+        (["run", empty, "--out", tmp_path / "o", "--perception", pkl], "empty.mp4"),
+        (["run", video, "--out", tmp_path / "o", "--perception", "openpose:x"], "openpose"),
+        (["run", video, "--out", tmp_path / "o", "--perception", pkl], "--trust-pickle"),
+        (["run", video, "--out", blocker / "sub", "--perception", pkl, "--trust-pickle"], "file"),
+        (["run", video, "--out", tmp_path / "o", "--perception", pkl, "--trust-pickle", "--set", "reid.nope=1"],
+         "reid.nope"),
+        (["run", video, "--out", tmp_path / "o", "--perception", pkl, "--trust-pickle", "--intrinsics", "1,2"],
+         "intrinsics"),
+    ]
+    for args, needle in cases:
+        out = run_cli(*args)
+        lines = out.stderr.strip().splitlines()
+        assert out.returncode == 2 and len(lines) == 1 and needle in lines[0], (args, out.stderr)
+    assert not (tmp_path / "o").exists()

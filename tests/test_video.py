@@ -39,3 +39,17 @@ def test_errors_name_the_file(tmp_path, clip):
         probe_video(bad)
     with pytest.raises(InputError, match="beyond the end"):
         read_frames(clip[0], [3, 9])
+
+
+def test_empty_and_zero_frame_videos(tmp_path):
+    empty = tmp_path / "empty.mp4"
+    empty.write_bytes(b"")
+    with pytest.raises(InputError, match="empty"):
+        probe_video(empty)
+    import cv2
+
+    path = tmp_path / "zero.avi"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (32, 24))
+    writer.release()
+    with pytest.raises(InputError, match="zero.avi"):
+        probe_video(path)
