@@ -7,6 +7,8 @@ source and optional refiners, joined by ``+``::
     SOURCE   := "phalp:" PATH                    4DHumans/PHALP results (.pkl, joblib); needs trust=True
               | "hmr2" [ ":" OPTIONS ]           HMR2 on the video (the hmr2 package);
                                                  OPTIONS: checkpoint=PATH,detector=PATH
+              | "oracle:" PATH                   exact tracks from a ground-truth .npz (:mod:`.oracle`:
+                                                 for datasets without estimator output; not a method result)
     REFINER  := "vitpose" [ ":" MODEL ]          2D keypoints with ViTPose in the tracks' boxes
               | "sam" [ ":" MODEL ]              masks with SAM prompted by the tracks' boxes
     MODEL    := a local folder (save_pretrained) or a hub name already in the Hugging Face cache;
@@ -27,10 +29,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from multithumbs.errors import InputError
 from multithumbs.types import PersonTracks, Shots
 
-SOURCES = ("phalp", "hmr2")
+SOURCES = ("phalp", "hmr2", "oracle")
 REFINERS = ("vitpose", "sam")
 DEFAULT_MODELS = {"vitpose": "usyd-community/vitpose-base-simple", "sam": "facebook/sam-vit-base"}
 
@@ -82,8 +86,8 @@ def parse_spec(spec: str) -> list[SpecTerm]:
                          f"phalp:RESULTS.pkl+{spec}")
     if any(t.backend in SOURCES for t in terms[1:]):
         raise InputError(f"perception spec {spec!r}: only one track source ({', '.join(SOURCES)}) is allowed")
-    if terms[0].backend == "phalp" and not terms[0].argument:
-        raise InputError(f"perception spec {spec!r}: phalp needs the results file, phalp:PATH")
+    if terms[0].backend in ("phalp", "oracle") and not terms[0].argument:
+        raise InputError(f"perception spec {spec!r}: {terms[0].backend} needs a file, {terms[0].backend}:PATH")
     return terms
 
 
@@ -118,6 +122,18 @@ def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool
         imported = load_phalp(source.argument, shots, info.image_size, trust=trust, frame_offset=frame_offset)
         tracks, boxes = list(imported.tracks), list(imported.boxes)
         uv, uv_valid = imported.uv_appearance, imported.uv_valid
+    elif source.backend == "oracle":
+        from multithumbs.body.model import load_body_model
+        from multithumbs.io import load_ground_truth
+        from multithumbs.perception.oracle import oracle_tracks
+
+        truth, extras = load_ground_truth(source.argument)
+        if truth.world.num_frames != shots.num_frames or not np.array_equal(truth.world.cut_frames, shots.cut_frames):
+            raise InputError(f"perception spec term oracle: {source.argument} has {truth.world.num_frames} frames and "
+                             f"cuts {truth.world.cut_frames.tolist()}; the video has {shots.num_frames} frames and "
+                             f"cuts {shots.cut_frames.tolist()}")
+        tracks = oracle_tracks(truth, load_body_model(), extras.get("instance"))
+        boxes = [truth.bboxes[tr.track_ids, a:b] for tr, (a, b) in zip(tracks, shots.ranges)]
     else:
         from multithumbs.perception.hmr2 import run_hmr2
 

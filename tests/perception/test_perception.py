@@ -22,12 +22,12 @@ def test_parse_spec_grammar():
 
 
 @pytest.mark.parametrize("spec, match", [
-    ("", "empty; known backends: phalp, hmr2, vitpose, sam"),
-    ("openpose:x", "unknown backend 'openpose'; known backends: phalp, hmr2, vitpose, sam"),
+    ("", "empty; known backends: phalp, hmr2, oracle, vitpose, sam"),
+    ("openpose:x", "unknown backend 'openpose'; known backends: phalp, hmr2, oracle, vitpose, sam"),
     ("phalp:r.pkl+dino", "unknown backend 'dino'"),
     ("vitpose+sam:/m", "vitpose refines existing tracks; start with a track source"),
     ("phalp:a.pkl+hmr2", "only one track source"),
-    ("phalp", "phalp needs the results file"),
+    ("phalp", "phalp needs a file"),
 ])
 def test_bad_specs(spec, match):
     with pytest.raises(InputError, match=match) as e:
@@ -75,3 +75,19 @@ def test_load_perception_with_vitpose_and_sam(scene, video_file, results_file, t
     for a, b in zip(tracks, plain):
         assert not np.array_equal(a.keypoints2d[a.valid], b.keypoints2d[b.valid])
         np.testing.assert_array_equal(a.transl, b.transl)
+
+
+def test_oracle_spec_checks_the_video_it_is_for(tmp_path):
+    from multithumbs.body.model import load_body_model
+    from multithumbs.synth.files import write_synthetic
+    from multithumbs.synth.scene import SceneConfig, synthesize
+
+    video = synthesize(SceneConfig(num_people=2, num_shots=2, num_frames=6, image_size=(90, 160), seed=4),
+                       load_body_model())
+    write_synthetic(tmp_path, video)
+    shots = video.truth.world.shots()
+    tracks = load_perception(f"oracle:{tmp_path / 'ground_truth.npz'}", tmp_path / "video.mp4", shots)
+    assert [t.num_people for t in tracks] == [2, 2] and tracks[1].appearance_valid.any()
+    other = Shots(np.array([2]), shots.fps, shots.num_frames, np.zeros(shots.num_frames))
+    with pytest.raises(InputError, match="cuts"):
+        load_perception(f"oracle:{tmp_path / 'ground_truth.npz'}", tmp_path / "video.mp4", other)
