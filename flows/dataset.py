@@ -13,6 +13,7 @@ from prefect.artifacts import create_progress_artifact, create_table_artifact, u
 from flows.method import run_method, space_refs
 from flows.reconstruct import METRIC_ORDER, SIMULATED_BACKENDS, publish_report
 from flows.runners import make_task_runner
+from flows.video import reconstruct_video
 from tasks.evaluation import evaluate_result
 from tasks.inputs import simulate_inputs
 from tasks.outputs import write_outputs
@@ -20,7 +21,11 @@ from tasks.method import method_params
 
 
 def _item_name(item: dict[str, Any], index: int) -> str:
-    return str(item.get("name") or item.get("scene", {}).get("name") or f"video{index:03d}")
+    if item.get("name"):
+        return str(item["name"])
+    if "video" in item:
+        return Path(item["video"]).parent.name or f"video{index:03d}"
+    return str(item.get("scene", {}).get("name") or f"video{index:03d}")
 
 
 def _check_items(items: list[dict[str, Any]]) -> list[str]:
@@ -30,8 +35,11 @@ def _check_items(items: list[dict[str, Any]]) -> list[str]:
         raise InputError("dataset: no videos given")
     names = []
     for i, item in enumerate(items):
-        if "scene" not in item:
-            raise InputError(f"dataset item {i}: needs a 'scene' (a synthetic SceneConfig as JSON)")
+        if ("scene" in item) == ("video" in item):
+            raise InputError(f"dataset item {i}: needs either a 'scene' (a synthetic SceneConfig as JSON) or a "
+                             f"'video' (with 'perception')")
+        if "video" in item and not item.get("perception"):
+            raise InputError(f"dataset item {i} ({item['video']}): needs a 'perception' spec")
         names.append(_item_name(item, i))
     if len(set(names)) != len(names):
         raise InputError("dataset: video names must be unique (each gets its own output folder)")
@@ -41,9 +49,24 @@ def _check_items(items: list[dict[str, Any]]) -> list[str]:
 @flow(name="reconstruct-dataset-run")
 def _dataset_run(items: list[dict[str, Any]], out_root: str, store_url: str, variant: str,
                  method: dict[str, Any] | None) -> list[dict[str, Any]]:
-    names = _check_items(items)
+    names = all_names = _check_items(items)
     root = Path(out_root)
     progress = create_progress_artifact(progress=0.0, description=f"{len(items)} videos: inputs, method, evaluation")
+    rows = {}
+    videos = [(name, item) for name, item in zip(names, items) if "video" in item]
+    for done, (name, item) in enumerate(videos, 1):  # real videos: each its own flow run (parallel inside)
+        summary = reconstruct_video(item["video"], str(root / name), store_url, item["perception"],
+                                    item.get("trust_pickle", False), item.get("intrinsics"), variant, method,
+                                    item.get("truth"), cuts=item.get("cuts"))
+        rows[name] = {"video": name, **{k: (summary["metrics"] or {}).get(k) for k in METRIC_ORDER},
+                      "backends": summary["backends"]}
+        update_progress_artifact(progress, 50.0 * done / len(items))
+    items = [item for item in items if "scene" in item]
+    names = [name for name in names if name not in rows]
+    if not items:
+        table = [rows[name] for name in all_names]
+        create_table_artifact(key="dataset-results", table=table, description=f"{len(table)} videos ({variant})")
+        return table
     input_futures = []
     for name, item in zip(names, items):
         (root / name).mkdir(parents=True, exist_ok=True)
@@ -60,13 +83,13 @@ def _dataset_run(items: list[dict[str, Any]], out_root: str, store_url: str, var
                                            space_refs(r), r["truth"], m, {"backends": SIMULATED_BACKENDS,
                                                                           "variant": variant})
                       for name, out, r, m in zip(names, outs, refs, metrics)]
-    rows = []
     for name, out, m, future in zip(names, outs, metrics, output_futures):
         publish_report(name, variant, future.result(), m)
-        rows.append({"video": name, **{k: m.get(k) for k in METRIC_ORDER}, "result": out["result"].key})
+        rows[name] = {"video": name, **{k: m.get(k) for k in METRIC_ORDER}, "result": out["result"].key}
     update_progress_artifact(progress, 100.0)
-    create_table_artifact(key="dataset-results", table=rows, description=f"{len(rows)} videos ({variant})")
-    return rows
+    table = [rows[name] for name in all_names]
+    create_table_artifact(key="dataset-results", table=table, description=f"{len(table)} videos ({variant})")
+    return table
 
 
 @flow(name="reconstruct-dataset")
@@ -77,7 +100,10 @@ def reconstruct_dataset(items: list[dict[str, Any]], out_root: str, store_url: s
     ``out_root/results.json`` and ``results.md``.
 
     Args:
-        items: one dict per video: ``{"name": ..., "scene": SceneConfig JSON}`` (synthetic, SIMULATED inputs).
+        items: one dict per video: ``{"name": ..., "scene": SceneConfig JSON}`` (synthetic, SIMULATED inputs) or
+            ``{"name": ..., "video": PATH, "perception": SPEC, "trust_pickle": bool, "truth": GT.npz,
+            "intrinsics": [fx, fy, cx, cy], "cuts": [...]}`` (a real video through
+            :func:`flows.video.reconstruct_video`; ``cuts`` when known, e.g. a benchmark clip).
         out_root: output folder (one subfolder per video).
         store_url: artifact store; a re-run resumes from it and computes only what is missing.
         variant: method variant. method: parameter overrides (:func:`tasks.method.method_config`).
@@ -102,3 +128,37 @@ def _cell(value: Any) -> str:
 
 def _json_default(value: Any) -> Any:
     return value.tolist() if hasattr(value, "tolist") else str(value)
+
+
+def benchmark_items(specs: list[str], data_root: str, clips_dir: str, perception: str = "oracle",
+                    trust_pickle: bool = False, smpl_dir: str | None = None) -> list[dict[str, Any]]:
+    """Build (or reuse) a real-data benchmark's clips and describe them as dataset items.
+
+    Args:
+        specs: clip spec files (:mod:`multithumbs.datasets.benchmark`).
+        data_root: the dataset's root. clips_dir: where clips are built.
+        perception: ``oracle`` (exact tracks from each clip's ground truth: measures everything after
+            perception, labelled so) or a folder holding 4DHumans/PHALP results ``NAME.pkl`` per clip.
+        trust_pickle: allow loading those results. smpl_dir: the user's SMPL models (EgoBody).
+    The cut frames come from the specs (the benchmark defines them); the intrinsics are the first frame's.
+    """
+    from multithumbs.datasets.benchmark import iter_benchmark
+    from multithumbs.errors import InputError
+    from multithumbs.io import load_ground_truth
+
+    items = []
+    for name, clip in iter_benchmark(specs, data_root, clips_dir, smpl_dir):
+        truth = load_ground_truth(clip / "ground_truth.npz")[0]
+        if perception == "oracle":
+            spec = f"oracle:{clip / 'ground_truth.npz'}"
+        else:
+            results = Path(perception) / f"{name}.pkl"
+            if not results.is_file():
+                raise InputError(f"perception {perception}: no results {results.name} for clip {name}")
+            spec = f"phalp:{results}"
+        K = truth.world.K[0]
+        items.append({"name": name, "video": str(clip / "video.mp4"), "perception": spec,
+                      "trust_pickle": trust_pickle, "truth": str(clip / "ground_truth.npz"),
+                      "intrinsics": [float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])],
+                      "cuts": truth.world.cut_frames.tolist()})
+    return items

@@ -14,7 +14,7 @@ from prefect.task_runners import ThreadPoolTaskRunner
 from flows.method import run_method, space_refs
 from flows.reconstruct import publish_outputs
 from tasks.evaluation import evaluate_result
-from tasks.inputs import (detect_video_shots, import_ground_truth, perceive_people, shared_space, spec_fingerprint,
+from tasks.inputs import (detect_video_shots, given_shots, import_ground_truth, perceive_people, shared_space, spec_fingerprint,
                           track_shot_camera)
 from tasks.method import method_params
 
@@ -40,7 +40,7 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
                       intrinsics: list[float] | None = None, variant: str = "full",
                       method: dict[str, Any] | None = None, truth: str | None = None,
                       shots: dict[str, Any] | None = None, tracking: dict[str, Any] | None = None,
-                      two_view: dict[str, Any] | None = None) -> dict[str, Any]:
+                      two_view: dict[str, Any] | None = None, cuts: list[int] | None = None) -> dict[str, Any]:
     """Reconstruct the people of an edited video in one world frame; write the result, pictures, exports and
     report to ``out_dir`` (and metrics when ``truth`` is given).
 
@@ -53,6 +53,8 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
         truth: optional ground-truth ``.npz`` to score against.
         shots, tracking, two_view: overrides of :class:`~multithumbs.scene.shots.ShotConfig`,
             :class:`~multithumbs.scene.tracking.TrackingConfig`, :class:`~multithumbs.scene.two_view.TwoViewConfig`.
+        cuts: the cut frames when they are known (a benchmark clip built from a spec); shot detection is
+            then skipped and the shots' source is ``given``.
     """
     from multithumbs.scene.shots import ShotConfig
     from multithumbs.scene.tracking import TrackingConfig
@@ -73,8 +75,12 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
         clock = time.perf_counter()
 
     truth_future = import_ground_truth.submit(store_url, truth) if truth else None
-    shots_ref = detect_video_shots(store_url, {}, {"video": digest,
-                                                   "config": dataclasses.asdict(ShotConfig(**(shots or {})))}, video)
+    if cuts is not None:
+        shots_ref = given_shots(store_url, {}, {"video": digest, "cuts": [int(c) for c in cuts],
+                                                "num_frames": info.num_frames, "fps": info.fps})
+    else:
+        shots_ref = detect_video_shots(store_url, {}, {"video": digest,
+                                                       "config": dataclasses.asdict(ShotConfig(**(shots or {})))}, video)
     lap("shot detection")
     tracks = perceive_people(store_url, {"shots": shots_ref},
                              {"video": digest, "spec": spec_fingerprint(perception), "trust": trust_pickle},

@@ -128,6 +128,19 @@ def detect_video_shots(store_url: str, inputs: dict[str, ArtifactRef], params: d
     return cached_stage("shots", compute, store_url, params, inputs)
 
 
+@stage_task("shots")
+def given_shots(store_url: str, inputs: dict[str, ArtifactRef], params: dict) -> ArtifactRef:
+    """Shots from known cut frames (params: ``video`` digest, ``cuts``, ``num_frames``, ``fps``)."""
+    def compute():
+        import numpy as np
+
+        from multithumbs.types import Shots
+
+        n = params["num_frames"]
+        return Shots(np.asarray(params["cuts"], np.int64), params["fps"], n, np.zeros(n), "given")
+    return cached_stage("shots", compute, store_url, params, inputs)
+
+
 @task(name="perception", cache_policy=NO_CACHE, retries=1)
 def perceive_people(store_url: str, inputs: dict[str, ArtifactRef], params: dict, video_path: str,
                     spec: str) -> list[ArtifactRef]:

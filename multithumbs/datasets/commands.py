@@ -82,6 +82,41 @@ def register(app: typer.Typer) -> None:
         if as_json:
             print(json.dumps(built, indent=2))
 
+    @dataset_app.command("run")
+    def run_cmd(
+        specs: List[Path] = typer.Argument(..., help="Spec files of the benchmark's clips."),
+        data_root: Path = typer.Option(..., "--data-root", help="The dataset's root folder."),
+        out: Path = typer.Option(..., "--out", help="Folder for the clips (OUT/clips), every clip's outputs "
+                                 "(OUT/runs/NAME) and the results table (OUT/runs/results.md, .json)."),
+        perception: str = typer.Option("oracle", "--perception", help="'oracle' (exact tracks from each clip's "
+                                       "ground truth: measures everything after perception) or a folder of "
+                                       "4DHumans/PHALP results NAME.pkl."),
+        trust_pickle: bool = typer.Option(False, "--trust-pickle", help="Allow loading the PHALP pickles."),
+        smpl_dir: Optional[Path] = typer.Option(None, "--smpl-dir", help="Folder of the user's SMPL models."),
+        variant: str = typer.Option("full", "--variant", help="Method variant."),
+        store: Optional[str] = typer.Option(None, "--store", help="Artifact store URL (default: OUT/store)."),
+        as_json: bool = typer.Option(False, "--json", help="Print the results table as JSON."),
+    ) -> None:
+        """Build the benchmark's clips and run the dataset flow over them (resumable; for a schedule, deploy
+        flows/dataset.py:reconstruct_dataset, see deploy/README.md)."""
+        from multithumbs.cli import _flow_environment
+        from multithumbs.errors import InputError
+
+        _flow_environment()
+        if perception != "oracle" and not Path(perception).is_dir():
+            raise InputError(f"--perception {perception}: neither 'oracle' nor a folder of PHALP results")
+        from flows.dataset import benchmark_items, reconstruct_dataset
+
+        items = benchmark_items([str(s) for s in specs], str(data_root), str(out / "clips"), perception,
+                                trust_pickle, None if smpl_dir is None else str(smpl_dir))
+        with console.status(f"{len(items)} clips through the dataset flow"):
+            rows = reconstruct_dataset(items, str((out / "runs").resolve()),
+                                       store or str((out / "store").resolve()), variant)
+        if as_json:
+            print(json.dumps(rows, indent=2, default=str))
+            return
+        console.print((out / "runs" / "results.md").read_text())
+
     app.add_typer(dataset_app, name="dataset")
 
     @app.command("smpl-convert")

@@ -67,3 +67,24 @@ def test_benchmark_flow_shares_stages_between_variants(prefect, tmp_path):
     stages = [ArtifactStore(tmp_path / "store").record(k)["stage"] for k in ArtifactStore(tmp_path / "store").keys()]
     # full, no_post and distance_only share one alignment; no_align has its own.
     assert stages.count("align") == 2 and stages.count("propagate") == 2
+
+
+def test_dataset_flow_over_a_fixture_benchmark(prefect, tmp_path):
+    """A real-data benchmark (an EgoHumans-layout fixture) built from a spec and run through the real flow."""
+    from flows.dataset import benchmark_items, reconstruct_dataset
+    from multithumbs.body.model import load_body_model
+    from tests.datasets.fixtures import make_egohumans
+
+    root = tmp_path / "egohumans"
+    make_egohumans(root, load_body_model(), num_frames=8)
+    spec = tmp_path / "clip.json"
+    spec.write_text(json.dumps({"name": "eh", "dataset": "egohumans", "sequence": "01_tagging/001_tagging",
+                                "cameras": ["cam01", "cam02"], "cuts": [4], "num_frames": 8}))
+    items = benchmark_items([str(spec)], str(root), str(tmp_path / "clips"))
+    assert items[0]["cuts"] == [4] and items[0]["perception"].startswith("oracle:")
+    rows = reconstruct_dataset(items, str(tmp_path / "runs"), str(tmp_path / "store"))
+    assert [r["video"] for r in rows] == ["eh"] and rows[0]["backends"]["perception"] == "oracle"
+    assert rows[0]["w_mpjpe"] is not None
+    table = (tmp_path / "runs" / "results.md").read_text().splitlines()
+    assert table[0].startswith("| video | w_mpjpe") and table[2].startswith("| eh |")
+    assert (tmp_path / "runs" / "eh" / "report.md").exists()
