@@ -186,6 +186,7 @@ def run_cmd(
     camera trajectories and shared spaces from the pixels, people from --perception."""
     _flow_environment()  # before anything imports prefect: its settings are read at import
     from multithumbs.perception import parse_spec
+    from multithumbs.synth.files import prepare_output_dir
     from multithumbs.video import probe_video
     from tasks.method import method_config
 
@@ -213,7 +214,7 @@ def run_cmd(
         intrinsics_matrix(K, info.width, info.height)
     if truth is not None and not truth.is_file():
         raise InputError(f"--truth {truth}: no such file")
-    out_dir = _prepare_run_dir(out, overwrite)
+    out_dir = prepare_output_dir(out, overwrite, RUN_OUTPUTS)
     from flows.video import reconstruct_video
 
     with console.status(f"reconstructing {video.name}: {info.num_frames} frames, {info.width}x{info.height}"):
@@ -235,23 +236,6 @@ def run_cmd(
             table.add_row(key, "nan" if value is None else f"{value:.3f}")
     Console().print(table)
     console.print(f"outputs in {out_dir}: " + ", ".join(sorted(Path(p).name for p in summary["files"].values())))
-
-
-def _prepare_run_dir(out: Path, overwrite: bool) -> Path:
-    import os
-
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a folder")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"{out}: cannot create the output folder ({exc.strerror})") from None
-    if not os.access(out, os.W_OK):
-        raise InputError(f"{out}: output folder is not writable")
-    existing = [n for n in RUN_OUTPUTS if (out / n).exists()]
-    if existing and not overwrite:
-        raise InputError(f"{out / existing[0]}: already exists (pass --overwrite to replace it)")
-    return out
 
 
 @app.command("demo")

@@ -80,8 +80,8 @@ def contact_sheet(video: SyntheticVideo, per_shot: int = 3, tile_width: int = 32
     return np.concatenate(rows, axis=0)
 
 
-def prepare_output_dir(out_dir: str | Path, overwrite: bool = False) -> Path:
-    """Create ``out_dir`` if needed; refuse to replace existing outputs unless ``overwrite``."""
+def prepare_output_dir(out_dir: str | Path, overwrite: bool = False, names: tuple[str, ...] = OUTPUT_NAMES) -> Path:
+    """Create ``out_dir`` if needed; refuse to replace existing outputs (files ``names``) unless ``overwrite``."""
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder")
@@ -91,7 +91,7 @@ def prepare_output_dir(out_dir: str | Path, overwrite: bool = False) -> Path:
         raise InputError(f"{out}: cannot create the output folder ({exc.strerror})") from None
     if not os.access(out, os.W_OK):
         raise InputError(f"{out}: output folder is not writable")
-    existing = [n for n in OUTPUT_NAMES if (out / n).exists()]
+    existing = [n for n in names if (out / n).exists()]
     if existing and not overwrite:
         raise InputError(f"{out / existing[0]}: already exists (pass --overwrite to replace it)")
     return out
