@@ -36,7 +36,6 @@ def run_scene(name: str) -> dict:
     from multithumbs.synth.scene import synthesize
     from multithumbs.synth.simulated_geometry import simulate_camera_trajectory, simulate_shared_space
     from multithumbs.synth.suite import suite_scene
-    from multithumbs.types import unpack_mask
 
     body = load_body_model()
     video = synthesize(suite_scene("standard", name), body)
@@ -57,12 +56,7 @@ def run_scene(name: str) -> dict:
     if not out["cuts_exact"]:
         out["pixels"] = {"w_mpjpe": float("nan"), "ids": float("nan")}
         return out
-    h, w = video.frames.shape[1:3]
-    masks = np.zeros(video.frames.shape[:3], bool)
-    for tr, (a, b) in zip(tracks, truth_shots.ranges):
-        for p in range(tr.num_people):
-            for f in np.flatnonzero(tr.valid[p]):
-                masks[a + f] |= unpack_mask(tr.masks[p, f], w)
+    masks = np.concatenate([tr.people_mask() for tr in tracks])
     geometry = scene_geometry(video.frames, shots, video.truth.world.K, masks)
     result = run_video(shots, tracks, list(geometry.trajectories), list(geometry.spaces), body, MethodConfig())
     scores = evaluate(result, video.truth, body)

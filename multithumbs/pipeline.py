@@ -491,3 +491,29 @@ def run_video(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequen
     tracks = prepare_inputs(shots, tracks, trajectories, spaces)
     aligned = align_cuts(shots, tracks, spaces, body, config)
     return finish_video(shots, tracks, trajectories, aligned, body, config)
+
+
+def run_video_file(video_path, perception: str, body, intrinsics: np.ndarray | None = None,
+                   config: MethodConfig = MethodConfig(), trust_pickle: bool = False,
+                   cuts: Sequence[int] | None = None) -> WorldResult:
+    """The whole chain in plain Python from a video file (the flow ``flows/video.py`` runs the same stages as
+    cached tasks): shots by scenedetect (or the given ``cuts``), people from the ``perception`` spec
+    (:func:`multithumbs.perception.load_perception`), camera trajectories and shared spaces by pycolmap with
+    the people masked out, then :func:`run_video`. ``intrinsics`` ``(3, 3)`` defaults to a 60° horizontal
+    field of view. Decodes the whole video into memory: meant for clips.
+    """
+    from multithumbs.perception import load_perception
+    from multithumbs.scene.geometry import scene_geometry
+    from multithumbs.scene.shots import detect_shots
+    from multithumbs.scene.two_view import default_intrinsics
+    from multithumbs.video import probe_video, read_frames
+
+    info = probe_video(video_path)
+    if cuts is None:
+        shots = detect_shots(video_path)
+    else:
+        shots = Shots(np.asarray(cuts, np.int64), info.fps, info.num_frames, np.zeros(info.num_frames), "given")
+    tracks = load_perception(perception, video_path, shots, trust=trust_pickle)
+    K = default_intrinsics(info.width, info.height) if intrinsics is None else np.asarray(intrinsics, np.float64)
+    geometry = scene_geometry(read_frames(video_path), shots, K, np.concatenate([tr.people_mask() for tr in tracks]))
+    return run_video(shots, tracks, list(geometry.trajectories), list(geometry.spaces), body, config)

@@ -203,6 +203,12 @@ class PersonTracks(_Checked):
         """``(H, W)`` bool mask of one person at one shot-local frame."""
         return unpack_mask(self.masks[person, frame], self.image_size[1])
 
+    def people_mask(self) -> np.ndarray:
+        """``(T, H, W)`` bool union of everyone's masks in every frame of the shot (where they are valid)."""
+        packed = np.where(self.valid[:, :, None, None], self.masks, 0)
+        union = np.bitwise_or.reduce(packed, axis=0) if len(packed) else np.zeros(self.masks.shape[1:], np.uint8)
+        return unpack_mask(union, self.image_size[1])
+
 
 def pack_mask(mask: np.ndarray) -> np.ndarray:
     """Bit-pack boolean masks ``(..., H, W)`` along the width to ``(..., H, ceil(W/8))`` uint8."""

@@ -157,18 +157,8 @@ def perceive_people(store_url: str, inputs: dict[str, ArtifactRef], params: dict
 
 def _union_masks(tracks, frames: list[int]) -> dict[int, np.ndarray]:
     """Video frame -> ``(H, W)`` bool union of the shot's people masks."""
-    from multithumbs.types import unpack_mask
-
-    h, w = tracks.image_size
-    out = {}
-    for f in frames:
-        local = f - tracks.start_frame
-        union = np.zeros((h, w), bool)
-        for p in range(tracks.num_people):
-            if tracks.valid[p, local]:
-                union |= unpack_mask(tracks.masks[p, local], w)
-        out[f] = union
-    return out
+    union = tracks.people_mask()
+    return {f: union[f - tracks.start_frame] for f in frames}
 
 
 @stage_task("trajectory")

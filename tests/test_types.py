@@ -62,3 +62,20 @@ def test_camera_and_shared_space_contracts():
     with pytest.raises(InputError, match="N"):
         SharedSpace(10, np.tile(np.eye(3), (2, 1, 1)), np.tile(np.eye(3), (2, 1, 1)), np.zeros((2, 3)),
                     np.zeros((6, 3)), np.zeros((2, 5, 2)), np.ones((2, 6), bool), np.ones(6), (4, 4))
+
+
+def test_people_mask_is_the_union_of_valid_masks():
+    import numpy as np
+
+    from multithumbs.types import PersonTracks, pack_mask
+
+    h, w, T = 4, 10, 2
+    masks = np.zeros((2, T, h, w), bool)
+    masks[0, 0, 0, 0] = masks[1, 0, 3, 9] = masks[1, 1, 2, 2] = True
+    valid = np.array([[True, True], [True, False]])
+    tr = PersonTracks(0, 0, np.array([0, 1]), np.zeros((2, T, 3)), np.zeros((2, T, 23, 3)), np.zeros((2, 10)),
+                      np.zeros((2, T, 3)), np.zeros((2, T, 24, 3)), pack_mask(masks), (h, w), np.eye(3),
+                      np.zeros((2, T, 1)), np.zeros((2, T), bool), valid)
+    union = tr.people_mask()
+    assert union.shape == (T, h, w)
+    assert union[0, 0, 0] and union[0, 3, 9] and not union[1].any()  # person 1 is not valid at frame 1

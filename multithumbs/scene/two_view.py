@@ -124,6 +124,7 @@ def _gray(frame: np.ndarray) -> np.ndarray:
 def _sift(config: TwoViewConfig):
     import pycolmap
 
+    pycolmap.logging.minloglevel = max(int(pycolmap.logging.minloglevel), 1)  # COLMAP's INFO lines are noise here
     options = pycolmap.FeatureExtractionOptions()
     options.sift.max_num_features = config.max_features
     options.sift.peak_threshold = config.peak_threshold
