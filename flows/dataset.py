@@ -162,3 +162,18 @@ def benchmark_items(specs: list[str], data_root: str, clips_dir: str, perception
                       "intrinsics": [float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])],
                       "cuts": truth.world.cut_frames.tolist()})
     return items
+
+
+@flow(name="dataset-benchmark")
+def dataset_benchmark(specs: list[str], data_root: str, out_dir: str, perception: str = "oracle",
+                      trust_pickle: bool = False, smpl_dir: str | None = None, store_url: str | None = None,
+                      variant: str = "full", runner: str = "threads", workers: int = 2) -> list[dict[str, Any]]:
+    """A real-data benchmark on a schedule: build (or reuse) the clips of ``specs`` from ``data_root`` into
+    ``out_dir/clips`` and run :func:`reconstruct_dataset` over them into ``out_dir/runs`` (results table
+    ``results.md``). Arguments as :func:`benchmark_items` and :func:`reconstruct_dataset`; the store defaults
+    to ``out_dir/store``, so each scheduled run resumes and recomputes only what changed.
+    """
+    root = Path(out_dir)
+    items = benchmark_items(specs, data_root, str(root / "clips"), perception, trust_pickle, smpl_dir)
+    return reconstruct_dataset(items, str(root / "runs"), store_url or str(root / "store"), variant,
+                               runner=runner, workers=workers)

@@ -74,11 +74,12 @@ def test_deploy_run_and_check_artifacts(tmp_path):
             time.sleep(1)
         prefect("work-pool", "create", "multithumbs-process", "--type", "process")
         prefect("--no-prompt", "deploy", "--prefect-file", "deploy/prefect.yaml", "--name", "synthetic-video",
-                "--name", "nightly-standard", "--name", "standard-suite")
+                "--name", "nightly-standard", "--name", "standard-suite", "--name", "egohumans-weekly")
         for name in ("reconstruct-synthetic/synthetic-video", "reconstruct-dataset/nightly-standard",
                      "benchmark/standard-suite"):
             assert "multithumbs-process" in prefect("deployment", "inspect", name)
         assert "0 2 * * *" in prefect("deployment", "inspect", "reconstruct-dataset/nightly-standard")
+        assert "0 3 * * 0" in prefect("deployment", "inspect", "dataset-benchmark/egohumans-weekly")
         start("worker", "worker", "start", "--pool", "multithumbs-process", sig=signal.SIGINT)
 
         out_dir, store = tmp_path / "run", tmp_path / "store"

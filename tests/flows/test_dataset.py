@@ -88,3 +88,11 @@ def test_dataset_flow_over_a_fixture_benchmark(prefect, tmp_path):
     table = (tmp_path / "runs" / "results.md").read_text().splitlines()
     assert table[0].startswith("| video | w_mpjpe") and table[2].startswith("| eh |")
     assert (tmp_path / "runs" / "eh" / "report.md").exists()
+    # The scheduled form (a deployment's flow) rebuilds nothing and recomputes nothing.
+    from flows.dataset import dataset_benchmark
+    from storage.store import ArtifactStore
+
+    keys = set(ArtifactStore(tmp_path / "store").keys())
+    again = dataset_benchmark([str(spec)], str(root), str(tmp_path), store_url=str(tmp_path / "store"))
+    assert again[0]["w_mpjpe"] == pytest.approx(rows[0]["w_mpjpe"])
+    assert set(ArtifactStore(tmp_path / "store").keys()) == keys
