@@ -27,7 +27,8 @@ def main() -> None:
     parser.add_argument("--frames", type=int, nargs="+", default=[150, 300, 600])
     args = parser.parse_args()
     body = load_body_model()
-    print(f"torch threads: {torch.get_num_threads()}; iterations {MethodConfig().align.iterations} + "
+    print(f"torch threads: {torch.get_num_threads()} (optimisation loops: align {MethodConfig().align.threads}, "
+          f"post {MethodConfig().post.threads}); iterations {MethodConfig().align.iterations} + "
           f"post {MethodConfig().post.iterations}")
     medians = {}
     for frames in args.frames:

@@ -21,11 +21,13 @@ behind someone else is not pulled out from behind them.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 
 import numpy as np
 import torch
 from scipy import ndimage
+from scipy.optimize import least_squares
 
 from multithumbs.geometry import (axis_angle_to_matrix, camera_centre, matrix_to_axis_angle, project,
                                   vertex_normals, world_to_camera)
@@ -57,6 +59,12 @@ class AlignConfig:
         scale_method: ``"depth_ratio"`` (default: mesh over scene depth at the visible vertices' pixels) or
             ``"max_radius"`` (the paper's ratio of maximum centroid-to-vertex distances); both compare a
             mesh's size with its point cloud's, see :mod:`multithumbs.method.scale`.
+        fit_scale_to_keypoints: for ``depth_ratio``, place each mesh at the depth where its joints
+            reproject onto its 2D keypoints (:func:`fit_pelvis_to_keypoints`) before comparing depths, so
+            the scale follows the meshes' metric size and not the estimator's depth, which monocular
+            estimators get wrong by a per-track factor (False: the estimator's depth, as before).
+        threads: torch intra-op threads of the optimisation loop (0: leave torch's setting); see
+            :func:`torch_threads`.
     """
 
     iterations: tuple[int, int, int] = (500, 500, 1500)
@@ -73,6 +81,8 @@ class AlignConfig:
     min_person_points: int = 20
     depth_robust_scale: float = 0.05
     scale_method: str = "depth_ratio"
+    fit_scale_to_keypoints: bool = True
+    threads: int = 1
 
 
 @dataclass(frozen=True)
@@ -189,11 +199,65 @@ def _visible_vertices_cam(local_vertices: np.ndarray, local_normals: np.ndarray,
     return verts[inside]
 
 
+def fit_pelvis_to_keypoints(local_joints: np.ndarray, orient_cam: np.ndarray, pelvis_cam: np.ndarray,
+                            keypoints: np.ndarray, K: np.ndarray, min_conf: float = 0.3,
+                            min_joints: int = 6) -> np.ndarray:
+    """Camera-frame pelvis ``(3,)`` at which the posed body's joints best reproject onto its 2D keypoints.
+
+    The body's size is metric (its shape), so the size of its projection fixes its depth: this is the
+    depth a monocular estimator should have reported, free of its depth-along-the-ray error (which
+    keeps the 2D position but not the projected size). Orientation and pose stay the estimator's.
+    Least squares on confidence-weighted pixel residuals from ``pelvis_cam``; ``pelvis_cam`` itself
+    when fewer than ``min_joints`` keypoints are confident or the fit fails.
+
+    Args:
+        local_joints: ``(24, 3)`` posed joints relative to the pelvis, zero global orientation.
+        orient_cam: ``(3,)`` axis-angle camera-frame root orientation.
+        pelvis_cam: ``(3,)`` the estimator's camera-frame pelvis (the starting point).
+        keypoints: ``(24, 3)`` 2D keypoints ``u, v, confidence``.
+        K: ``(3, 3)`` intrinsics.
+    """
+    use = keypoints[:, 2] >= min_conf
+    if use.sum() < min_joints or pelvis_cam[2] <= 1e-6:
+        return np.asarray(pelvis_cam, float).copy()
+    offsets = (local_joints @ axis_angle_to_matrix(orient_cam).T)[use]
+    weight = np.sqrt(keypoints[use, 2])[:, None]
+
+    def residuals(x):
+        # x = (u, v, log z) of the pelvis: the pixel and log-depth are well scaled for the solver.
+        z = np.exp(x[2])
+        pelvis = np.array([x[0] * z, x[1] * z, z])
+        return ((project(offsets + pelvis, K) - keypoints[use, :2]) * weight).ravel()
+
+    start = np.array([pelvis_cam[0] / pelvis_cam[2], pelvis_cam[1] / pelvis_cam[2], np.log(pelvis_cam[2])])
+    fit = least_squares(residuals, start, method="lm", x_scale=np.array([0.01, 0.01, 0.05]))
+    if not fit.success or not np.all(np.isfinite(fit.x)):
+        return np.asarray(pelvis_cam, float).copy()
+    z = float(np.exp(fit.x[2]))
+    return np.array([fit.x[0] * z, fit.x[1] * z, z])
+
+
+def keypoint_fitted_pelvis(people: BoundaryPeople, K: np.ndarray, min_conf: float) -> np.ndarray:
+    """``(2, P, 3)`` camera-frame pelvis of every present boundary person from :func:`fit_pelvis_to_keypoints`."""
+    out = np.array(people.pelvis_cam, float)
+    for k in range(2):
+        for p in np.nonzero(people.present[k])[0]:
+            out[k, p] = fit_pelvis_to_keypoints(people.local_joints[k, p], people.orient_cam[k, p],
+                                                people.pelvis_cam[k, p], people.keypoints[k, p], K[k], min_conf)
+    return out
+
+
 def estimate_space_scale(people: BoundaryPeople, space: SharedSpace, maps: np.ndarray, valid: np.ndarray,
-                         min_points: int, method: str = "depth_ratio") -> float:
-    """Mesh-to-space scale at a cut (nan when no person has enough points)."""
+                         min_points: int, method: str = "depth_ratio", pelvis_cam: np.ndarray | None = None) -> float:
+    """Mesh-to-space scale at a cut (nan when no person has enough points).
+
+    ``pelvis_cam`` ``(2, P, 3)``: where each mesh is placed in its camera frame for the ``depth_ratio``
+    comparison (default: the estimator's placement; :func:`align_boundary` passes
+    :func:`keypoint_fitted_pelvis`, whose depths follow from the meshes' metric size).
+    """
     if method not in ("depth_ratio", "max_radius"):
         raise ValueError(f"scale_method {method!r}: use 'depth_ratio' or 'max_radius'")
+    pelvis_cam = people.pelvis_cam if pelvis_cam is None else pelvis_cam
     first, second = [], []
     normals = vertex_normals(people.local_vertices, people.faces)
     h, w = valid.shape[1:]
@@ -201,7 +265,7 @@ def estimate_space_scale(people: BoundaryPeople, space: SharedSpace, maps: np.nd
         for p in np.nonzero(people.present[k])[0]:
             mask = people.masks[k, p]
             verts = _visible_vertices_cam(people.local_vertices[k, p], normals[k, p], people.orient_cam[k, p],
-                                          people.pelvis_cam[k, p], space.K[k], mask)
+                                          pelvis_cam[k, p], space.K[k], mask)
             if method == "max_radius":
                 first.append(verts)
                 second.append(maps[k][mask & valid[k]])
@@ -228,7 +292,9 @@ def align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignConf
                    skip: bool = False) -> AlignedBoundary:
     """Place the boundary people of one cut in its shared space (``skip=True``: the ``no_align`` ablation)."""
     maps, valid = point_maps(space)
-    scale = estimate_space_scale(people, space, maps, valid, config.min_person_points, config.scale_method)
+    fitted = keypoint_fitted_pelvis(people, space.K, config.keypoint_confidence) if config.fit_scale_to_keypoints \
+        else None
+    scale = estimate_space_scale(people, space, maps, valid, config.min_person_points, config.scale_method, fitted)
     s = scale if np.isfinite(scale) and scale > 0 else 1.0
     maps = maps * s
     R0, t0 = space.R.astype(np.float64), space.t.astype(np.float64) * s
@@ -243,11 +309,12 @@ def align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignConf
     problem = _Problem(people, space, maps, valid, config)
     state = problem.state(R0, t0, orient, pelvis)
     losses = []
-    if config.staged:
-        losses += problem.run(state, config.iterations[1], stage=2)
-        losses += problem.run(state, config.iterations[2], stage=3)
-    else:
-        losses += problem.run(state, config.iterations[1] + config.iterations[2], stage=3)
+    with torch_threads(config.threads):
+        if config.staged:
+            losses += problem.run(state, config.iterations[1], stage=2)
+            losses += problem.run(state, config.iterations[2], stage=3)
+        else:
+            losses += problem.run(state, config.iterations[1] + config.iterations[2], stage=3)
     R, t, orient, pelvis = problem.export(state)
     return AlignedBoundary(R=R, t=t, orient=orient, pelvis=pelvis, losses=np.asarray(losses),
                            method="three_stage" if config.staged else "joint", **common)
@@ -271,6 +338,23 @@ def _stage1_roots(people: BoundaryPeople, maps: np.ndarray, valid: np.ndarray, f
             if (xs[nearest] - uv[0]) ** 2 + (ys[nearest] - uv[1]) ** 2 <= 15 ** 2:
                 pelvis[k, p] = maps[k, ys[nearest], xs[nearest]]
     return pelvis
+
+
+@contextlib.contextmanager
+def torch_threads(count: int):
+    """Run the block with ``count`` torch intra-op threads (0: leave the setting alone), then restore it.
+
+    The method's optimisation loops run thousands of small tensor ops: splitting each across threads
+    costs more in synchronisation than it saves (benchmarks/method.py, 150 frames: 21.4 s with 2 threads,
+    19.0 s with one).
+    """
+    before = torch.get_num_threads()
+    if count > 0:
+        torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 DTYPE = torch.float64

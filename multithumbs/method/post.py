@@ -28,6 +28,7 @@ import numpy as np
 import torch
 
 from multithumbs.geometry import project, world_to_camera
+from multithumbs.method.align import torch_threads
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,8 @@ class PostConfig:
         smooth_order: 1 penalises joint velocity ``‖J_t − J_{t+1}‖²`` (the paper's term); 2 penalises
             acceleration ``‖J_{t−1} − 2J_t + J_{t+1}‖²``, which leaves steady walking and the ends of a
             track alone (first differences pull a track's ends inwards and slow every walk).
+        threads: torch intra-op threads of the optimisation loop (0: leave torch's setting); see
+            :func:`multithumbs.method.align.torch_threads`.
     """
 
     iterations: int = 300
@@ -61,6 +64,7 @@ class PostConfig:
     pose_prior: str = "gaussian"
     keypoint_confidence: float = 0.3
     smooth_order: int = 2
+    threads: int = 1
 
 
 @dataclass(frozen=True)
@@ -119,6 +123,11 @@ def _windows(valid: np.ndarray, cut_frames: np.ndarray, matched_at_cut: np.ndarr
 
 def post_process(data: PostInput, body, config: PostConfig = PostConfig(), vposer=None) -> PostOutput:
     """Refine all people's world SMPL parameters jointly (see the module docstring)."""
+    with torch_threads(config.threads):
+        return _post_process(data, body, config, vposer)
+
+
+def _post_process(data: PostInput, body, config: PostConfig, vposer) -> PostOutput:
     if config.pose_prior == "vposer" and vposer is None:
         raise ValueError("pose_prior='vposer' needs a VPoser model; the default is the gaussian substitute")
     p_count, t_count = data.valid.shape

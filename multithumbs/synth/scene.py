@@ -41,7 +41,8 @@ class SceneConfig:
         camera_height: (min, max) height of the cameras above the floor (m).
         dolly_speed: sideways speed of a moving camera (m/s).
         only_in_one_shot: persons (indices) present in one shot only, the shot given: ``((person, shot),)``.
-        dressed_alike: pairs of persons dressed alike: the same neutral-grey uniform, skin, hair and build.
+        dressed_alike: pairs of persons dressed alike: the same neutral-grey uniform, skin, shaven head
+            and build.
         crossing_pair: two persons whose paths cross at the scene centre at the first cut, or None.
         room_size: (width, depth, height) of the room (m).
         motion: how people move.
@@ -159,9 +160,11 @@ def _draw_clothing(rng: np.random.Generator, num_people: int, alike: tuple[tuple
                             top, sleeves, bottom, np.array([0.12, 0.1, 0.09]) + 0.3 * rng.random() * np.ones(3)))
     for a, b in alike:
         # A uniform: both wear the same achromatic suit (no hue for a colour descriptor to key on, and grey
-        # stays grey however the light falls on it), with the same skin and hair, so appearance alone
-        # cannot tell them apart; the draws above are kept so everybody else dresses as before.
-        out[a] = out[b] = Clothing(out[a].skin, out[a].hair, _UNIFORM_TOP, _UNIFORM_TOP, _UNIFORM_BOTTOM, _UNIFORM_SHOES)
+        # stays grey however the light falls on it) and the same skin, with shaven heads (hair = skin), so
+        # the head looks the same from the front and the back: appearance alone cannot tell them apart,
+        # whichever way each faces. The draws above are kept so everybody else dresses as before.
+        skin = out[a].skin
+        out[a] = out[b] = Clothing(skin, skin, _UNIFORM_TOP, _UNIFORM_TOP, _UNIFORM_BOTTOM, _UNIFORM_SHOES)
     return out
 
 

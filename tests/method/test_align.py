@@ -50,3 +50,52 @@ def test_a_cut_with_nobody_on_one_side_is_a_documented_outcome(tiny, body):
     aligned = align_boundary(people, tiny.spaces[0], AlignConfig(iterations=(0, 20, 20)))
     assert not aligned.present[1].any() and aligned.present[0].any()
     assert np.isfinite(aligned.pelvis[0][aligned.present[0]]).all() and np.isfinite(aligned.scale)
+
+
+def _depth_corrupted(people, factors):
+    """The boundary people with each estimated pelvis moved along its pixel ray by a per-person factor."""
+    import dataclasses
+    pelvis = people.pelvis_cam * np.asarray(factors)[None, :, None]
+    return dataclasses.replace(people, pelvis_cam=pelvis)
+
+
+def test_keypoint_fit_recovers_depth_lost_along_the_ray(tiny, body):
+    from multithumbs.method.align import fit_pelvis_to_keypoints
+    people = boundary_people(tiny.tracks[0], tiny.tracks[1], body)
+    K = tiny.spaces[0].K[0]
+    truth = people.pelvis_cam[0, 0]
+    for factor in (0.8, 1.25):  # a monocular estimator's depth error keeps the pixel, not the size
+        fitted = fit_pelvis_to_keypoints(people.local_joints[0, 0], people.orient_cam[0, 0], truth * factor,
+                                         people.keypoints[0, 0], K)
+        np.testing.assert_allclose(fitted, truth, rtol=2e-3)
+    # Too few confident keypoints: the estimator's placement is kept.
+    blind = people.keypoints[0, 0].copy()
+    blind[:, 2] = 0.0
+    np.testing.assert_array_equal(fit_pelvis_to_keypoints(people.local_joints[0, 0], people.orient_cam[0, 0],
+                                                          truth * 1.1, blind, K), truth * 1.1)
+
+
+def test_space_scale_does_not_inherit_the_estimators_depth_error(tiny, body):
+    from multithumbs.method.align import estimate_space_scale, keypoint_fitted_pelvis
+    people = _depth_corrupted(boundary_people(tiny.tracks[0], tiny.tracks[1], body), [1.15, 1.1])
+    space = tiny.spaces[0]
+    s = float(tiny.space_from_world[0].numpy()[0])
+    maps, valid = point_maps(space)
+    raw = estimate_space_scale(people, space, maps, valid, 20)
+    fitted = estimate_space_scale(people, space, maps, valid, 20, pelvis_cam=keypoint_fitted_pelvis(people, space.K, 0.3))
+    assert abs(raw * s - 1) > 0.08  # the estimator's depth error passes into the scale ...
+    assert abs(fitted * s - 1) < 0.01  # ... the meshes' size does not carry it
+
+
+def test_torch_threads_are_restored():
+    import pytest
+    import torch
+
+    from multithumbs.method.align import torch_threads
+    before = torch.get_num_threads()
+    with torch_threads(1):
+        assert torch.get_num_threads() == 1
+    assert torch.get_num_threads() == before
+    with pytest.raises(RuntimeError), torch_threads(1):
+        raise RuntimeError("boom")
+    assert torch.get_num_threads() == before
