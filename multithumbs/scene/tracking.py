@@ -276,6 +276,7 @@ def _sequential_sfm(tracks: Tracks, count: int, K: np.ndarray, image_size: tuple
     camera = _colmap_camera(K, image_size)
     options = pycolmap.AbsolutePoseEstimationOptions()
     options.ransac.max_error = config.ransac_max_error
+    options.ransac.random_seed = 0  # reproducible trajectories from the same frames
     first_seen = np.argmax(seen, axis=0)
     for f in range(1, count):
         if f != init:
