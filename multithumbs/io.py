@@ -120,3 +120,14 @@ def load_ground_truth(path: str | Path) -> tuple[GroundTruth, dict[str, np.ndarr
     extras = {k[3:]: v for k, v in arrays.items()
               if k.startswith("gt_") and k not in ("gt_bboxes", "gt_visible", "gt_camera_ids")}
     return truth, extras
+
+
+def read_json(path: str | Path) -> Any:
+    """A JSON file's content; :class:`InputError` naming the file when it is missing or not JSON."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: missing")
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError) as error:
+        raise InputError(f"{path}: not readable JSON ({error})") from None

@@ -288,25 +288,31 @@ def convert_smpl_pickle(source: str | Path, destination: str | Path) -> Path:
     objects become their ``x`` array, scipy sparse matrices become dense) and writes the arrays
     ``smplx.SMPL`` needs. Point ``$MULTITHUMBS_SMPL_MODEL`` at the result.
     """
-    source = Path(source)
-    try:
-        with open(source, "rb") as file:
-            data = _ChumpyFreeUnpickler(file, encoding="latin1").load()
-    except Exception as error:  # pickle raises many types for a broken or foreign file
-        raise InputError(f"SMPL model {source}: cannot be read as a pickle ({type(error).__name__}: {error})") from None
-    if not isinstance(data, dict):
-        raise InputError(f"SMPL model {source}: expected a pickled dict of arrays, got {type(data).__name__}")
-    arrays = {}
-    for key in _REQUIRED:
-        if key not in data:
-            raise InputError(f"SMPL model {source}: has no {key!r} array")
-        value = data[key]
-        value = value.toarray() if hasattr(value, "toarray") else _plain(value)
-        arrays[key] = np.asarray(value)
+    arrays = read_smpl_pickle(source)
     arrays["f"] = arrays["f"].astype(np.int64)
     arrays["kintree_table"] = arrays["kintree_table"].astype(np.int64)
     arrays["kintree_table"][0, 0] = -1
     return write_npz(destination, arrays)
+
+
+def read_smpl_pickle(path: str | Path) -> dict[str, np.ndarray]:
+    """The arrays ``smplx.SMPL`` needs from an SMPL pickle, read without chumpy (``Ch`` objects -> their
+    ``x`` arrays, scipy sparse -> dense); :class:`InputError` for a broken or foreign file."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as file:
+            data = _ChumpyFreeUnpickler(file, encoding="latin1").load()
+    except Exception as error:  # pickle raises many types for a broken or foreign file
+        raise InputError(f"SMPL model {path}: cannot be read as a pickle ({type(error).__name__}: {error})") from None
+    if not isinstance(data, dict):
+        raise InputError(f"SMPL model {path}: expected a pickled dict of arrays, got {type(data).__name__}")
+    arrays = {}
+    for key in _REQUIRED:
+        if key not in data:
+            raise InputError(f"SMPL model {path}: has no {key!r} array")
+        value = data[key]
+        arrays[key] = np.asarray(value.toarray() if hasattr(value, "toarray") else _plain(value))
+    return arrays
 
 
 def _plain(value):

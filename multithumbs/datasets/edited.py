@@ -24,7 +24,6 @@ is a person, the linked ones sharing one id. The episode frames are not distribu
 from __future__ import annotations
 
 import csv
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator
@@ -34,6 +33,7 @@ import numpy as np
 from multithumbs.conventions import NUM_JOINTS
 from multithumbs.datasets.sequence import read_rgb
 from multithumbs.errors import InputError
+from multithumbs.io import read_json
 from multithumbs.types import Shots
 
 BODY25_TO_SMPL = {
@@ -299,15 +299,6 @@ def describe_ava(root: str | Path) -> dict[str, Any]:
 
 # ---------------------------------------------------------------- sitcoms
 
-def _load_json(path: Path):
-    if not path.is_file():
-        raise InputError(f"{path}: missing")
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError) as error:
-        raise InputError(f"{path}: not readable JSON ({error})") from None
-
-
 def sitcom_locations(root: str | Path) -> list[str]:
     """Locations with both ``human_data/<loc>.json`` and ``human_pairs/<loc>.json``."""
     root = Path(root)
@@ -328,7 +319,7 @@ def _sitcom_cameras(root: Path, location: str) -> dict[str, tuple[np.ndarray, np
     path = root / "sparse_reconstruction_and_nerf_data" / location / "cameras.json"
     if not path.is_file():
         return {}
-    data = _load_json(path)
+    data = read_json(path)
     out = {}
     for k, frame in enumerate(data.get("frames", [])):
         try:
@@ -349,7 +340,7 @@ def load_sitcom_pairs(root: str | Path, location: str) -> list[EditedClip]:
     root = Path(root)
     humans_path = root / "human_data" / f"{location}.json"
     pairs_path = root / "human_pairs" / f"{location}.json"
-    humans, pairs = _load_json(humans_path), _load_json(pairs_path)
+    humans, pairs = read_json(humans_path), read_json(pairs_path)
     if not isinstance(humans, dict):
         raise InputError(f"{humans_path}: expected {{image_name: [humans]}}")
     if not isinstance(pairs, list):
@@ -409,7 +400,7 @@ def describe_sitcoms(root: str | Path) -> dict[str, Any]:
                          f"human_pairs/<loc>.json)")
     out = []
     for loc in locations:
-        humans = _load_json(root / "human_data" / f"{loc}.json")
+        humans = read_json(root / "human_data" / f"{loc}.json")
         clips = load_sitcom_pairs(root, loc)
         out.append({"location": loc, "images": len(humans), "humans": int(sum(len(v) for v in humans.values())),
                     "pairs": int(sum(len(c.metadata["links"]) for c in clips)), "clips": len(clips),

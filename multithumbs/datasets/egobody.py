@@ -19,7 +19,6 @@ come from gendered SMPL models (genders from the CSV), which the user supplies
 from __future__ import annotations
 
 import csv
-import json
 import pickle
 from pathlib import Path
 from typing import Callable, Sequence
@@ -31,6 +30,7 @@ from multithumbs.conventions import NUM_BETAS, NUM_BODY_JOINTS, NUM_JOINTS
 from multithumbs.datasets.cameras import Camera, metric_extrinsics
 from multithumbs.datasets.sequence import MultiViewSequence, PeopleSeries, read_betas, read_rgb, smpl_array
 from multithumbs.errors import InputError
+from multithumbs.io import read_json
 
 INFO_CSV = "data_info_release.csv"
 SPLITS_CSV = "data_splits.csv"
@@ -97,7 +97,7 @@ def _gender(text: str, where: str) -> tuple[int, str]:
 
 def read_color_json(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """``K`` and OpenCV distortion coefficients from a Kinect ``Color.json``."""
-    data = _load_json(path)
+    data = read_json(path)
     try:
         K = np.asarray(data["camera_mtx"], dtype=np.float64)
         dist = np.asarray(data.get("k", []), dtype=np.float64).reshape(-1)
@@ -106,15 +106,6 @@ def read_color_json(path: Path) -> tuple[np.ndarray, np.ndarray]:
     if K.shape != (3, 3):
         raise InputError(f"{path}: camera_mtx must be 3x3, got shape {K.shape}")
     return K, dist
-
-
-def _load_json(path: Path):
-    if not path.is_file():
-        raise InputError(f"{path}: missing")
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError) as error:
-        raise InputError(f"{path}: not readable JSON ({error})") from None
 
 
 def gendered_bodies(smpl_dir: str | Path | None) -> BodyFactory:
@@ -196,7 +187,7 @@ def load_egobody(root: str | Path, recording: str, bodies: BodyFactory | None = 
             R, t = np.eye(3), np.zeros(3)
         else:
             path = root / "calibrations" / recording / "cal_trans" / f"kinect_{KINECT_IDS[view]}to12_color.json"
-            data = _load_json(path)
+            data = read_json(path)
             if "trans" not in data:
                 raise InputError(f"{path}: missing field 'trans'")
             trans = np.asarray(data["trans"], dtype=np.float64)

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from multithumbs.body.model import read_smpl_pickle
 from multithumbs.errors import InputError
 from multithumbs.io import publish
 
@@ -40,27 +41,6 @@ class ConversionCheck:
     num_poses: int
     max_vertex_difference: float
     max_joint_difference: float
-
-
-def read_smpl_pickle(path: str | Path) -> dict[str, np.ndarray]:
-    """The arrays of an SMPL pickle read without chumpy (``Ch`` objects -> their arrays, sparse -> dense)."""
-    from multithumbs.body.model import _REQUIRED, _ChumpyFreeUnpickler, _plain
-
-    path = Path(path)
-    try:
-        with open(path, "rb") as file:
-            data = _ChumpyFreeUnpickler(file, encoding="latin1").load()
-    except Exception as error:  # pickle raises many types for a broken or foreign file
-        raise InputError(f"SMPL model {path}: cannot be read as a pickle ({type(error).__name__})") from None
-    if not isinstance(data, dict):
-        raise InputError(f"SMPL model {path}: expected a pickled dict of arrays, got {type(data).__name__}")
-    out = {}
-    for key in _REQUIRED:
-        if key not in data:
-            raise InputError(f"SMPL model {path}: has no {key!r} array")
-        value = data[key]
-        out[key] = np.asarray(value.toarray() if hasattr(value, "toarray") else _plain(value))
-    return out
 
 
 def _pickle_model(arrays: dict[str, np.ndarray]):
@@ -129,4 +109,4 @@ def convert_and_verify(source: str | Path, destination: str | Path, overwrite: b
     return ConversionCheck(destination, int(converted.num_vertices), num_poses, dv, dj)
 
 
-__all__ = ["ConversionCheck", "convert_and_verify", "read_smpl_pickle"]
+__all__ = ["ConversionCheck", "convert_and_verify"]
