@@ -11,13 +11,15 @@ from prefect.artifacts import create_markdown_artifact, create_table_artifact
 from prefect.task_runners import ThreadPoolTaskRunner
 
 from flows.method import run_method, space_refs
+from multithumbs.bench import METRIC_KEYS
 from storage.store import ArtifactRef
 from tasks.evaluation import evaluate_result
 from tasks.inputs import simulate_inputs
 from tasks.outputs import write_outputs
 from tasks.method import method_params
 
-METRIC_ORDER = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "ate", "ids", "pck", "jitter", "fs")
+METRIC_ORDER = METRIC_KEYS
+"""The metrics in the paper's order (one definition: :data:`multithumbs.bench.METRIC_KEYS`)."""
 
 
 def metrics_rows(metrics: dict[str, Any]) -> list[dict[str, Any]]:

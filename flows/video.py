@@ -126,4 +126,5 @@ def _backends(store_url, shots_ref, trajectories, spaces, perception: str) -> di
 def _fallbacks(spaces) -> dict[str, str]:
     from tasks.artifacts import load
 
-    return {f"cut {c}": load(r).fallback for c, r in enumerate(spaces) if load(r).fallback}
+    fallbacks = {f"cut {c}": load(r).fallback for c, r in enumerate(spaces)}
+    return {cut: path for cut, path in fallbacks.items() if path}

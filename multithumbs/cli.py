@@ -185,6 +185,7 @@ def run_cmd(
     """Reconstruct the people of a video across its cuts through the Prefect flow (embedded API): shots,
     camera trajectories and shared spaces from the pixels, people from --perception."""
     _flow_environment()  # before anything imports prefect: its settings are read at import
+    from multithumbs.bench import METRIC_KEYS
     from multithumbs.perception import parse_spec
     from multithumbs.synth.files import prepare_output_dir
     from multithumbs.video import probe_video
@@ -232,7 +233,7 @@ def run_cmd(
     for stage, seconds in summary["timings"].items():
         table.add_row(f"{stage} (s)", f"{seconds:.1f}")
     for key, value in (summary["metrics"] or {}).items():
-        if key in ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "ate", "ids", "pck", "jitter", "fs"):
+        if key in METRIC_KEYS:
             table.add_row(key, "nan" if value is None else f"{value:.3f}")
     Console().print(table)
     console.print(f"outputs in {out_dir}: " + ", ".join(sorted(Path(p).name for p in summary["files"].values())))
@@ -247,6 +248,7 @@ def demo_cmd(
     overwrite: bool = typer.Option(False, "--overwrite", help="Reuse an output folder that holds a demo."),
 ) -> None:
     """Synthesise a standard-suite scene and reconstruct it through the real Prefect flow (embedded API)."""
+    from multithumbs.bench import METRIC_KEYS
     from multithumbs.pipeline import variant_config
     from multithumbs.synth.files import prepare_output_dir
     from multithumbs.synth.scene import config_to_json
@@ -264,7 +266,7 @@ def demo_cmd(
     table = Table(title=f"{scene} ({variant}) — perception, shared space and camera tracking SIMULATED")
     table.add_column("metric")
     table.add_column("value", justify="right")
-    for key in ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "ate", "ids", "pck", "jitter", "fs"):
+    for key in METRIC_KEYS:
         value = metrics.get(key)
         table.add_row(key, "nan" if value is None else f"{value:.3f}")
     Console().print(table)

@@ -131,3 +131,17 @@ def read_json(path: str | Path) -> Any:
         return json.loads(path.read_text())
     except (OSError, ValueError) as error:
         raise InputError(f"{path}: not readable JSON ({error})") from None
+
+
+def make_output_dir(out_dir: str | Path) -> Path:
+    """Create ``out_dir`` (and parents) if needed; :class:`InputError` when it is a file or not writable."""
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{out}: cannot create the output folder ({exc.strerror})") from None
+    if not os.access(out, os.W_OK):
+        raise InputError(f"{out}: output folder is not writable")
+    return out

@@ -203,10 +203,13 @@ class PersonTracks(_Checked):
         """``(H, W)`` bool mask of one person at one shot-local frame."""
         return unpack_mask(self.masks[person, frame], self.image_size[1])
 
-    def people_mask(self) -> np.ndarray:
-        """``(T, H, W)`` bool union of everyone's masks in every frame of the shot (where they are valid)."""
-        packed = np.where(self.valid[:, :, None, None], self.masks, 0)
-        union = np.bitwise_or.reduce(packed, axis=0) if len(packed) else np.zeros(self.masks.shape[1:], np.uint8)
+    def people_mask(self, frames: np.ndarray | None = None) -> np.ndarray:
+        """``(N, H, W)`` bool union of everyone's masks (where they are valid) at shot-local ``frames``
+        (default: every frame of the shot, ``N = T``)."""
+        frames = np.arange(self.num_frames) if frames is None else np.asarray(frames, int)
+        packed = np.where(self.valid[:, frames, None, None], self.masks[:, frames], 0)
+        union = np.bitwise_or.reduce(packed, axis=0) if len(packed) else np.zeros((len(frames), *self.masks.shape[2:]),
+                                                                                    np.uint8)
         return unpack_mask(union, self.image_size[1])
 
 

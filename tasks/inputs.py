@@ -157,8 +157,8 @@ def perceive_people(store_url: str, inputs: dict[str, ArtifactRef], params: dict
 
 def _union_masks(tracks, frames: list[int]) -> dict[int, np.ndarray]:
     """Video frame -> ``(H, W)`` bool union of the shot's people masks."""
-    union = tracks.people_mask()
-    return {f: union[f - tracks.start_frame] for f in frames}
+    union = tracks.people_mask(np.asarray(frames, int) - tracks.start_frame)
+    return dict(zip(frames, union))
 
 
 @stage_task("trajectory")

@@ -79,3 +79,18 @@ def test_people_mask_is_the_union_of_valid_masks():
     union = tr.people_mask()
     assert union.shape == (T, h, w)
     assert union[0, 0, 0] and union[0, 3, 9] and not union[1].any()  # person 1 is not valid at frame 1
+
+
+def test_people_mask_of_chosen_frames_matches_the_whole_shot():
+    import numpy as np
+
+    from multithumbs.types import PersonTracks, pack_mask
+
+    rng = np.random.default_rng(0)
+    masks = rng.random((3, 5, 6, 11)) > 0.7
+    valid = rng.random((3, 5)) > 0.3
+    tr = PersonTracks(0, 0, np.arange(3), np.zeros((3, 5, 3)), np.zeros((3, 5, 23, 3)), np.zeros((3, 10)),
+                      np.zeros((3, 5, 3)), np.zeros((3, 5, 24, 3)), pack_mask(masks), (6, 11), np.eye(3),
+                      np.zeros((3, 5, 1)), np.zeros((3, 5), bool), valid)
+    np.testing.assert_array_equal(tr.people_mask([4, 1]), tr.people_mask()[[4, 1]])
+    np.testing.assert_array_equal(tr.people_mask(), (masks & valid[:, :, None, None]).any(0))

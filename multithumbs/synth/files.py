@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 from multithumbs.errors import InputError
-from multithumbs.io import publish, save_ground_truth
+from multithumbs.io import make_output_dir, publish, save_ground_truth
 from multithumbs.synth.scene import SyntheticVideo
 
 OUTPUT_NAMES = ("video.mp4", "ground_truth.npz", "contact_sheet.png")
@@ -82,15 +82,7 @@ def contact_sheet(video: SyntheticVideo, per_shot: int = 3, tile_width: int = 32
 
 def prepare_output_dir(out_dir: str | Path, overwrite: bool = False, names: tuple[str, ...] = OUTPUT_NAMES) -> Path:
     """Create ``out_dir`` if needed; refuse to replace existing outputs (files ``names``) unless ``overwrite``."""
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a folder")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"{out}: cannot create the output folder ({exc.strerror})") from None
-    if not os.access(out, os.W_OK):
-        raise InputError(f"{out}: output folder is not writable")
+    out = make_output_dir(out_dir)
     existing = [n for n in names if (out / n).exists()]
     if existing and not overwrite:
         raise InputError(f"{out / existing[0]}: already exists (pass --overwrite to replace it)")

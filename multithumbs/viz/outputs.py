@@ -27,6 +27,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from multithumbs.errors import InputError
+from multithumbs.io import make_output_dir
 from multithumbs.export.files import write_text_atomic
 from multithumbs.export.smpl import person_file_name
 from multithumbs.types import GroundTruth, WorldResult
@@ -82,13 +83,7 @@ def _read_manifest(out: Path) -> set[str] | None:
 
 def check_output_dir(out_dir: str | Path, plan: Mapping[str, str], overwrite: bool = False) -> Path:
     """Create ``out_dir`` and refuse to replace files this module did not write (module docstring)."""
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a folder")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"{out}: cannot create the output folder ({exc.strerror})") from None
+    out = make_output_dir(out_dir)
     if overwrite:
         return out
     ours = _read_manifest(out)
