@@ -101,6 +101,20 @@ def unproject(pixels: torch.Tensor, depth: torch.Tensor, K: torch.Tensor) -> tor
     return rays * depth.unsqueeze(-1)
 
 
+@numpy_compatible
+def reexpress_for_intrinsics(points_cam: torch.Tensor, K_from: torch.Tensor, K_to: torch.Tensor) -> torch.Tensor:
+    """Camera-frame points ``(..., N, 3)`` given for intrinsics ``K_from (..., 3, 3)``, re-expressed for ``K_to``.
+
+    Each point keeps its pixel and its depth scales by the focal-length ratio ``sqrt(fx fy)`` of ``K_to`` over
+    ``K_from``, so an object keeps its projected size: what a monocular estimator would have reported had it
+    known the real camera. Estimators such as HMR2 / 4DHumans assume a focal length of their own
+    (:mod:`multithumbs.perception.camera`); their translations are converted with this before they meet the
+    scene's cameras. The identity when the intrinsics are equal. numpy in, numpy out.
+    """
+    ratio = torch.sqrt(K_to[..., 0, 0] * K_to[..., 1, 1] / (K_from[..., 0, 0] * K_from[..., 1, 1]))
+    return unproject(project(points_cam, K_from), points_cam[..., 2] * ratio[..., None], K_to)
+
+
 def intrinsics(fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
     """``(3, 3)`` pinhole intrinsics."""
     return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])

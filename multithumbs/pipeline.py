@@ -28,7 +28,8 @@ import torch
 
 from multithumbs.appearance import mean_descriptor
 from multithumbs.errors import InputError
-from multithumbs.geometry import Similarity, axis_angle_to_matrix, matrix_to_axis_angle, transform_cameras
+from multithumbs.geometry import (Similarity, axis_angle_to_matrix, matrix_to_axis_angle, reexpress_for_intrinsics,
+                                  transform_cameras)
 from multithumbs.method.align import AlignConfig, AlignedBoundary, BoundaryPeople, align_boundary
 from multithumbs.method.post import PostConfig, PostInput, post_process
 from multithumbs.method.propagate import (apply_corrections, camera_to_world_roots, place_trajectory,
@@ -99,12 +100,15 @@ def _pelvis_rest(body, betas: np.ndarray) -> np.ndarray:
         return body.rest_joints(betas).double().numpy()[..., 0, :]
 
 
-def boundary_people(before: PersonTracks, after: PersonTracks, body, window: int = 3) -> BoundaryPeople:
+def boundary_people(before: PersonTracks, after: PersonTracks, body, window: int = 3,
+                    K: np.ndarray | None = None) -> BoundaryPeople:
     """The people around a cut — the last frame of ``before``, the first of ``after`` — posed once.
 
     A person the detector missed at the boundary frame itself is taken from their detection nearest to it
     within ``window`` frames (people move centimetres in that time), so one missed frame does not leave
-    them unaligned; ``track_frame`` records which frame was used.
+    them unaligned; ``track_frame`` records which frame was used. ``K`` ``(2, 3, 3)``: the boundary
+    cameras' intrinsics (the shared space's); the estimator's camera-frame roots are re-expressed for them
+    (:func:`multithumbs.geometry.reexpress_for_intrinsics`; default: kept as the tracks give them).
     """
     sides = []
     for tr, last in ((before, True), (after, False)):
@@ -141,7 +145,8 @@ def boundary_people(before: PersonTracks, after: PersonTracks, body, window: int
         out["local_vertices"][k, :n] = verts - joints[:, :1]
         out["local_joints"][k, :n] = joints - joints[:, :1]
         out["orient_cam"][k, :n] = tr.global_orient[idx, f]
-        out["pelvis_cam"][k, :n] = tr.transl[idx, f] + joints[:, 0]
+        pelvis_cam = tr.transl[idx, f] + joints[:, 0]
+        out["pelvis_cam"][k, :n] = pelvis_cam if K is None else reexpress_for_intrinsics(pelvis_cam, tr.K, K[k])
         kp = tr.keypoints2d[idx, f]
         out["keypoints"][k, :n, :, :] = kp[:, :24] if kp.shape[1] >= 24 else 0.0
         for j, (i, fr) in enumerate(picks):
@@ -230,7 +235,7 @@ def propagate(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequen
     for k in range(n_shots):
         tr = tracks[k]
         pelvis_rest = _pelvis_rest(body, tr.betas)                                  # (P, 3)
-        pelvis_cam = tr.transl + pelvis_rest[:, None]
+        pelvis_cam = reexpress_for_intrinsics(tr.transl + pelvis_rest[:, None], tr.K, trajectories[k].K)
         corrections = {i: [] for i in range(tr.num_people)}
         if not independent:
             for c, side, frame in ((k - 1, 1, 0), (k, 0, tr.num_frames - 1)):
@@ -442,7 +447,7 @@ def align_cuts(shots: Shots, tracks: Sequence[PersonTracks], spaces: Sequence[Sh
     """Stages 1-2 for every cut (nothing for the ``independent_shots`` baseline)."""
     if config.independent_shots:
         return []
-    return [align_boundary(boundary_people(tracks[c], tracks[c + 1], body), space, config.align,
+    return [align_boundary(boundary_people(tracks[c], tracks[c + 1], body, K=space.K), space, config.align,
                            skip=config.skip_align) for c, space in enumerate(spaces)]
 
 

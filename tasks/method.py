@@ -79,9 +79,10 @@ def align_cut(store_url: str, inputs: dict[str, ArtifactRef], params: dict) -> A
         from multithumbs.method.align import AlignConfig, align_boundary
         from multithumbs.pipeline import boundary_people, sanitize_tracks
 
+        space = load(inputs["space"])
         people = boundary_people(sanitize_tracks(load(inputs["tracks_before"])),
-                                 sanitize_tracks(load(inputs["tracks_after"])), load_body_model())
-        return align_boundary(people, load(inputs["space"]), _section(AlignConfig, params["align"]),
+                                 sanitize_tracks(load(inputs["tracks_after"])), load_body_model(), K=space.K)
+        return align_boundary(people, space, _section(AlignConfig, params["align"]),
                               skip=params["skip"])
     return cached_stage("align", compute, store_url, params, inputs)
 

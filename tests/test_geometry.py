@@ -49,6 +49,21 @@ def test_projection_unprojection_round_trip(rng):
     np.testing.assert_allclose(g.project(np.array([[0, 0, 3.0]]), K), [[319.5, 179.5]])
 
 
+def test_reexpress_for_intrinsics_keeps_pixels_and_projected_size(rng):
+    K_true = g.intrinsics_from_fov(640, 360, 60)
+    K_hmr = g.intrinsics(5000 / 256 * 640, 5000 / 256 * 640, 320.0, 180.0)  # HMR2's assumed camera
+    pts = rng.uniform([-1, -1, 2], [1, 1, 6], size=(4, 7, 3))  # (people, joints, 3)
+    moved = g.reexpress_for_intrinsics(pts, K_true, K_hmr)
+    assert moved.shape == pts.shape
+    np.testing.assert_allclose(g.project(moved, K_hmr), g.project(pts, K_true), atol=1e-8)
+    np.testing.assert_allclose(moved[..., 2] / pts[..., 2], K_hmr[0, 0] / K_true[0, 0], rtol=1e-12)
+    np.testing.assert_allclose(g.reexpress_for_intrinsics(moved, K_hmr, K_true), pts, atol=1e-10)
+    np.testing.assert_allclose(g.reexpress_for_intrinsics(pts, K_true, K_true), pts, atol=1e-12)
+    # per-frame intrinsics broadcast over the leading axis
+    per_frame = g.reexpress_for_intrinsics(pts, np.stack([K_true] * 4), np.stack([K_hmr] * 4))
+    np.testing.assert_allclose(per_frame, moved, atol=1e-10)
+
+
 def test_umeyama_recovers_similarity_and_matches_closed_form(rng):
     x = rng.normal(size=(3, 40, 3))
     R = g.axis_angle_to_matrix(rng.normal(size=(3, 3)))

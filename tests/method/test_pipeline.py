@@ -4,9 +4,11 @@ import numpy as np
 import pytest
 
 from multithumbs.errors import InputError
+from multithumbs.geometry import reexpress_for_intrinsics
 from multithumbs.method.align import AlignConfig
 from multithumbs.method.post import PostConfig
 from multithumbs.metrics.evaluate import evaluate
+from multithumbs.perception.camera import hmr2_intrinsics
 from multithumbs.pipeline import VARIANTS, MethodConfig, run_video, variant_config
 from multithumbs.synth.perception import true_track_people
 
@@ -28,6 +30,29 @@ def test_full_method_links_identities_and_places_people(tiny, body):
     assert scores["ids"] == 0 and scores["coverage"] > 0.95
     assert scores["w_mpjpe"] < 40 and scores["mpjpe"] < 25
     assert "reid_cost_cut0" in result.diagnostics and result.diagnostics["align_loss_cut0"].size == 180
+
+
+def test_tracks_in_the_estimators_own_intrinsics_give_the_same_world(tiny, body):
+    """4DHumans reports camera-frame translations for its own focal length (perception/camera.py); the method
+    re-expresses them for the scene's cameras, so the world does not depend on the estimator's camera."""
+    K_hmr = hmr2_intrinsics(tiny.tracks[0].image_size)
+    converted = []
+    for tr in tiny.tracks:
+        pelvis = _pelvis(body, tr)
+        moved = reexpress_for_intrinsics(pelvis, tr.K, K_hmr)
+        transl = np.where(tr.valid[..., None], moved - (pelvis - tr.transl), 0.0)
+        converted.append(dataclasses.replace(tr, K=K_hmr, transl=transl))
+    first = tiny.tracks[0].valid.nonzero()
+    assert converted[0].transl[first][0, 2] > 10 * tiny.tracks[0].transl[first][0, 2]  # ~30x deeper
+    config = variant_config("no_post", FAST)
+    a, b = _run(tiny, body, config=config), _run(tiny, body, tracks=converted, config=config)
+    np.testing.assert_allclose(b.transl, a.transl, atol=1e-3)
+    assert evaluate(b, tiny.video.truth, body)["w_mpjpe"] < 40
+
+
+def _pelvis(body, tracks):
+    rest = body.rest_joints(tracks.betas).double().numpy()[:, 0]
+    return tracks.transl + rest[:, None]
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
