@@ -2,9 +2,9 @@
 
 Per scene: synthesise, simulate perception, the shared space at each cut and each shot's camera
 tracking (SIMULATED backends, labelled so in the report), then run every variant — sharing what they
-have in common: one alignment per distinct alignment setting, one propagation and re-identification per
-distinct setting — and score each with :func:`multithumbs.metrics.evaluate.evaluate`. Scenes run in
-parallel worker processes.
+have in common: one alignment per distinct alignment setting, one propagation per distinct alignment and
+propagation setting, one post-processing per distinct placement, identities and post setting — and
+score each with :func:`multithumbs.metrics.evaluate.evaluate`. Scenes run in parallel worker processes.
 
 Aggregation over scenes: pose errors (W-MPJPE, WA-MPJPE, MPJPE, PA-MPJPE, MPVPE, Accel) are frame-weighted
 means over scored frames (METRICS.md); ATE, IDs, PCK*, Jitter and FS are means over scenes.
@@ -21,7 +21,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 from multithumbs.errors import InputError
-from multithumbs.pipeline import VARIANTS, MethodConfig, align_cuts, finish_video, prepare_inputs, variant_config
+from multithumbs.pipeline import (VARIANTS, MethodConfig, Placement, align_cuts, post_processed_world, prepare_inputs,
+                                  propagate, reidentify, to_world_result, variant_config, world_diagnostics)
 from multithumbs.synth.scene import SceneConfig
 
 METRIC_KEYS = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "ate", "ids", "pck", "jitter", "fs")
@@ -68,6 +69,8 @@ def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: Met
     trajectories = [simulate_camera_trajectory(video, k, seed=seed) for k in range(shots.num_shots)]
     tracks = prepare_inputs(shots, tracks, trajectories, spaces)
     aligned_cache: dict[tuple, list] = {}
+    placement_cache: dict[tuple, Placement] = {}
+    world_cache: dict[tuple, tuple] = {}
     metrics, seconds = {}, {}
     for name in variants:
         cfg = variant_config(name, base)
@@ -75,7 +78,20 @@ def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: Met
         key = _alignment_key(cfg)
         if key not in aligned_cache:
             aligned_cache[key] = align_cuts(shots, tracks, spaces, body, cfg)
-        result = finish_video(shots, tracks, trajectories, aligned_cache[key], body, cfg)
+        aligned = aligned_cache[key]
+        key += (cfg.propagate_orientation,)
+        if key not in placement_cache:
+            placement_cache[key] = propagate(shots, tracks, trajectories, aligned, body,
+                                             independent=cfg.independent_shots,
+                                             propagate_orientation=cfg.propagate_orientation)
+        placement = placement_cache[key]
+        ids = reidentify(tracks, placement, cfg.reid, cfg.appearance_window, shots.fps)
+        # Variants whose identities agree share the post-processed world (baselines often agree with full).
+        key += (tuple(g.tobytes() for g in ids.global_ids), ids.matched_at_cut.tobytes(), cfg.skip_post, cfg.post)
+        if key not in world_cache:
+            world_cache[key] = post_processed_world(shots, tracks, placement, ids, body, cfg)
+        world, _ = world_cache[key]
+        result = to_world_result(shots, tracks, world, ids, world_diagnostics(aligned, placement, ids))
         seconds[name] = time.perf_counter() - start
         scores = evaluate(result, video.truth, body)
         metrics[name] = {k: _float(scores.get(k)) for k in (*METRIC_KEYS, "scored_frames", "coverage")}

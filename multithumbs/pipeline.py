@@ -463,6 +463,32 @@ def finish_video(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Seq
 def finish_world(shots: Shots, tracks: Sequence[PersonTracks], aligned: Sequence[AlignedBoundary],
                  placement: Placement, ids: Identities, body, config: MethodConfig = MethodConfig()) -> WorldResult:
     """Stages 5-6 after re-identification: assembly, post-processing and the result with its diagnostics."""
+    world, post_losses = post_processed_world(shots, tracks, placement, ids, body, config)
+    diagnostics = world_diagnostics(aligned, placement, ids)
+    if post_losses is not None:
+        diagnostics["post_loss"] = post_losses
+    return to_world_result(shots, tracks, world, ids, diagnostics)
+
+
+def post_processed_world(shots: Shots, tracks: Sequence[PersonTracks], placement: Placement, ids: Identities,
+                         body, config: MethodConfig = MethodConfig()) -> tuple[PostInput, np.ndarray | None]:
+    """The assembled world tracks after post-processing (as assembled for ``no_post``), and its loss curve.
+
+    Depends on ``ids`` only through ``global_ids`` and ``matched_at_cut``: variants whose re-identification
+    agrees share it (:func:`multithumbs.bench.run_scene`).
+    """
+    world = assemble(shots, tracks, placement, ids)
+    if config.skip_post:
+        return world, None
+    out = post_process(world, body, config.post)
+    world = dataclasses.replace(world, global_orient=out.global_orient, body_pose=out.body_pose,
+                                betas=out.betas, transl=out.transl)
+    return world, out.losses
+
+
+def world_diagnostics(aligned: Sequence[AlignedBoundary], placement: Placement, ids: Identities
+                      ) -> dict[str, np.ndarray]:
+    """Alignment losses and scales, trajectory scales and re-ID cost matrices, by name."""
     diagnostics: dict[str, np.ndarray] = {}
     for c, result in enumerate(aligned):
         diagnostics[f"align_loss_cut{c}"] = result.losses
@@ -473,13 +499,7 @@ def finish_world(shots: Shots, tracks: Sequence[PersonTracks], aligned: Sequence
         diagnostics[f"reid_distance_cut{c}"] = m.distance
         diagnostics[f"reid_pairs_cut{c}"] = m.pairs
         diagnostics[f"reid_before_ids_cut{c}"] = ids.before_ids[c]
-    world = assemble(shots, tracks, placement, ids)
-    if not config.skip_post:
-        out = post_process(world, body, config.post)
-        world = dataclasses.replace(world, global_orient=out.global_orient, body_pose=out.body_pose,
-                                    betas=out.betas, transl=out.transl)
-        diagnostics["post_loss"] = out.losses
-    return to_world_result(shots, tracks, world, ids, diagnostics)
+    return diagnostics
 
 
 def prepare_inputs(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequence[CameraTrajectory],
