@@ -97,7 +97,8 @@ def list_suite(name: str = typer.Argument("standard", help="Suite name."),
         table.add_column(col)
     for c in configs:
         special = ", ".join(filter(None, [c.only_in_one_shot and "one-shot person",
-                                          c.dressed_alike and "dressed alike", c.crossing_pair and "crossing"]))
+                                          c.dressed_alike and "dressed alike", c.abreast_pair and "walking abreast",
+                                          c.crossing_pair and "crossing"]))
         table.add_row(c.name, str(c.num_people), str(c.num_shots), str(c.num_frames), f"{c.cut_angle_deg:g}",
                       str(c.moving_cameras), special)
     Console().print(table)

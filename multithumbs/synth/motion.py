@@ -132,6 +132,59 @@ def simulate_walk(start: np.ndarray, waypoints: list[np.ndarray], num_frames: in
                         out["gesture"].astype(np.int64), out["gesture_phase"])
 
 
+def straight_walk(through: np.ndarray, heading: float, at_time: float, num_frames: int, fps: float,
+                  speed: float, rng: np.random.Generator, config: MotionConfig = MotionConfig(),
+                  path: tuple[float, float] = (-np.inf, np.inf)) -> PersonMotion:
+    """Walk a straight line at constant speed and heading, passing ``through`` at ``at_time``.
+
+    The person stands at the ends of ``path`` (signed distance along the heading from ``through``, m)
+    before setting off and after arriving, legs settling as in :func:`simulate_walk`.
+
+    Args:
+        through: ``(2,)`` floor point on the line.
+        heading: walking direction about world +z (rad), kept throughout.
+        at_time: time (s) at which the person is at ``through`` (when it lies within ``path``).
+        speed: walking speed (m/s).
+        rng: draws the initial gait phase.
+        config: gives the stride length.
+        path: ``(min, max)`` stretch of the line walked; must contain 0 for ``through`` to be reached.
+    """
+    direction = np.array([np.cos(heading), np.sin(heading)])
+    t_axis = np.arange(num_frames) / fps
+    along = np.clip(speed * (t_axis - at_time), *path)
+    position = np.asarray(through, float)[None] + along[:, None] * direction[None]
+    step = np.abs(np.diff(along, prepend=along[0]))
+    moving = step > 1e-9
+    amount = np.zeros(num_frames)
+    for f in range(1, num_frames):  # legs swing up and settle within a quarter second, as in simulate_walk
+        amount[f] = min(1.0, amount[f - 1] + 4 / fps) if moving[f] else max(0.0, amount[f - 1] - 4 / fps)
+    phase = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.cumsum(step) / config.stride_length
+    zeros = np.zeros(num_frames)
+    return PersonMotion(position, np.full(num_frames, float(heading)), phase, amount, zeros.astype(np.int64),
+                        zeros.copy())
+
+
+def walk_abreast(through: np.ndarray, heading: float, at_time: float, spacing: float, num_frames: int,
+                 fps: float, rng: np.random.Generator, config: MotionConfig = MotionConfig(),
+                 speed: float | None = None, path: tuple[float, float] = (-np.inf, np.inf)
+                 ) -> tuple[PersonMotion, PersonMotion]:
+    """Two people walking side by side: the same heading and speed on parallel lines ``spacing`` apart.
+
+    Their midpoint passes ``through`` at ``at_time``; they set off and stop together (``path`` as in
+    :func:`straight_walk`, for the midpoint). Only the gait phase differs between them (drawn per person):
+    from any viewpoint both show the same side of the body under the same light.
+
+    Returns:
+        the person on the left of the heading, then the one on the right.
+    """
+    speed = speed if speed is not None else config.walk_speed + config.walk_speed_spread * rng.standard_normal()
+    speed = float(np.clip(speed, 0.5, 1.8))
+    left = np.array([-np.sin(heading), np.cos(heading)])
+    through = np.asarray(through, float)
+    return tuple(straight_walk(through + side * 0.5 * spacing * left, heading, at_time, num_frames, fps, speed,
+                               rng, config, path) for side in (1.0, -1.0))
+
+
 def _rot(axis: str, angle: np.ndarray) -> np.ndarray:
     """``(T, 3, 3)`` rotations about a body axis."""
     return Rotation.from_euler(axis, np.asarray(angle, float)[..., None]).as_matrix()

@@ -1,7 +1,8 @@
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from multithumbs.synth.motion import BODY_TO_WORLD, MotionConfig, motion_to_smpl, simulate_walk
+from multithumbs.synth.motion import (BODY_TO_WORLD, MotionConfig, motion_to_smpl, simulate_walk, straight_walk,
+                                      walk_abreast)
 
 
 def _walk(seed=0, frames=300, **kw):
@@ -46,3 +47,33 @@ def test_smpl_pose_is_upright_and_faces_heading():
     # Walking swings the legs in opposition.
     hips = np.abs(pose[:, [0, 1], 0]).max(axis=0)
     assert np.all(hips > np.deg2rad(10))
+
+
+def test_straight_walk_passes_through_at_the_time_and_stands_at_the_path_ends():
+    rng = np.random.default_rng(0)
+    m = straight_walk(np.array([0.5, -0.2]), np.deg2rad(30), 1.0, 90, 30.0, 1.2, rng, path=(-0.6, 1.5))
+    np.testing.assert_allclose(m.position[30], [0.5, -0.2], atol=1e-9)  # at the point at t = 1 s
+    np.testing.assert_allclose(m.heading, np.deg2rad(30))
+    step = np.linalg.norm(np.diff(m.position, axis=0), axis=1) * 30.0
+    walking = step > 0
+    np.testing.assert_allclose(step[walking][1:-1], 1.2, atol=1e-9)  # constant speed (first, last step partial)
+    assert step.max() <= 1.2 + 1e-9
+    assert not walking[0] and not walking[-1]  # stands at both ends of the path
+    along = (m.position - [0.5, -0.2]) @ [np.cos(np.deg2rad(30)), np.sin(np.deg2rad(30))]
+    np.testing.assert_allclose([along.min(), along.max()], [-0.6, 1.5], atol=1e-9)
+    assert m.gait_amount[0] == 0.0 and m.gait_amount[-1] == 0.0 and m.gait_amount[30] == 1.0
+    assert np.all(m.gesture == 0)
+
+
+def test_walk_abreast_shares_heading_and_speed_side_by_side():
+    rng = np.random.default_rng(1)
+    left, right = walk_abreast(np.zeros(2), 0.4, 1.5, 1.2, 90, 30.0, rng, path=(-1.0, 1.0))
+    np.testing.assert_array_equal(left.heading, right.heading)
+    offset = left.position - right.position
+    np.testing.assert_allclose(np.linalg.norm(offset, axis=1), 1.2, atol=1e-9)
+    # side by side: the offset is across the heading, to the left
+    np.testing.assert_allclose(offset @ [np.cos(0.4), np.sin(0.4)], 0.0, atol=1e-9)
+    assert np.all(offset @ [-np.sin(0.4), np.cos(0.4)] > 0)
+    np.testing.assert_allclose(np.diff(left.position, axis=0), np.diff(right.position, axis=0), atol=1e-12)
+    np.testing.assert_allclose(0.5 * (left.position[45] + right.position[45]), [0.0, 0.0], atol=1e-9)
+    assert not np.allclose(left.gait_phase, right.gait_phase)  # each walks in their own step

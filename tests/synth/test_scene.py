@@ -82,5 +82,69 @@ def test_standard_suite_covers_what_it_promises():
     assert any(c.moving_cameras for c in scenes) and any(not c.moving_cameras for c in scenes)
     assert any(c.only_in_one_shot for c in scenes)
     assert any(c.dressed_alike for c in scenes) and any(c.crossing_pair for c in scenes)
+    assert any(c.dressed_alike and c.abreast_pair for c in scenes)
     with pytest.raises(InputError, match="not in suite"):
         suite_scene("standard", "nope")
+
+
+def _facing_away(motion, frame, camera_xy):
+    """Cosine between a person's heading and the direction from the camera to them (1: back to the camera)."""
+    to_person = motion.position[frame] - camera_xy
+    heading = np.array([np.cos(motion.heading[frame]), np.sin(motion.heading[frame])])
+    return float(heading @ to_person / np.linalg.norm(to_person))
+
+
+@pytest.mark.parametrize("name", ["s08_dressed_alike", "s12_alike_crossing_25deg"])
+def test_dressed_alike_pair_walks_abreast_through_the_cut(name):
+    config = suite_scene("standard", name)
+    assert config.abreast_pair is not None and set(config.abreast_pair) == set(config.dressed_alike[0])
+    scene = build_scene(config)
+    a, b = (scene.motions[p] for p in config.abreast_pair)
+    cut = int(scene.cut_frames[0])
+    # The same heading throughout, 1-1.5 m apart side by side, both walking through the cut.
+    heading_gap = np.degrees(np.abs(np.angle(np.exp(1j * (a.heading - b.heading)))))
+    assert heading_gap.max() < 3.0
+    distance = np.linalg.norm(a.position - b.position, axis=1)
+    assert np.all((distance >= 1.0) & (distance <= 1.5))
+    for m in (a, b):
+        assert m.gait_amount[cut - 1] == 1.0 and m.gait_amount[cut] == 1.0
+        assert np.linalg.norm(m.position[cut] - m.position[cut - 1]) > 0.02
+    # The same view at the cut: each boundary frame's camera sees both from the same side (here their
+    # backs), within the perspective difference of two people 1.2 m apart.
+    for shot, frame in ((0, cut - 1), (1, cut)):
+        centre = -(scene.cameras.R[shot, frame].T @ scene.cameras.t[shot, frame])[:2]
+        views = [_facing_away(m, frame, centre) for m in (a, b)]
+        assert min(views) > 0.5
+        assert np.degrees(abs(np.arccos(views[0]) - np.arccos(views[1]))) < 25.0
+    # Nobody walks into them: everyone else keeps 0.55 m at least (a crossing partner passes at 0.6 m).
+    for p, other in enumerate(scene.motions):
+        if p not in config.abreast_pair:
+            for m in (a, b):
+                assert np.linalg.norm(other.position - m.position, axis=1).min() > 0.55
+
+
+def test_abreast_pair_is_seen_in_both_boundary_frames(body):
+    config = SceneConfig(num_people=3, num_shots=2, num_frames=12, seed=8, image_size=(180, 320), cut_angle_deg=30,
+                         dressed_alike=((0, 1),), abreast_pair=(0, 1))
+    video = synthesize(config, body)
+    cut = int(video.scene.cut_frames[0])
+    for frame in (cut - 1, cut):
+        for p in (0, 1):
+            assert (video.instance[frame] == p).sum() > 400  # each of the pair in full view, not hidden
+    np.testing.assert_array_equal(video.scene.clothing[0].top, video.scene.clothing[1].top)
+    assert config_from_json(video.truth.metadata["config"]) == config
+    # reproducible from the seed
+    again = build_scene(config)
+    for m, n in zip(again.motions, video.scene.motions):
+        np.testing.assert_array_equal(m.position, n.position)
+
+
+def test_abreast_pair_options_are_checked():
+    with pytest.raises(InputError, match="two different persons"):
+        SceneConfig(abreast_pair=(1, 1))
+    with pytest.raises(InputError, match="out of range"):
+        SceneConfig(num_people=2, abreast_pair=(0, 2))
+    with pytest.raises(InputError, match="crossing pair"):
+        SceneConfig(abreast_pair=(0, 1), crossing_pair=(1, 0))
+    with pytest.raises(InputError, match="abreast_spacing"):
+        SceneConfig(abreast_pair=(0, 1), abreast_spacing=0.2)
