@@ -30,7 +30,7 @@ from scipy import ndimage
 from scipy.optimize import least_squares
 
 from multithumbs.geometry import (axis_angle_to_matrix, camera_centre, matrix_to_axis_angle, project,
-                                  vertex_normals, world_to_camera)
+                                  vertex_normals)
 from multithumbs.method.scale import depth_ratio_scale, mesh_to_points_scale
 from multithumbs.types import SharedSpace
 
@@ -66,8 +66,8 @@ class AlignConfig:
             reproject onto its 2D keypoints (:func:`fit_pelvis_to_keypoints`) before comparing depths, so
             the scale follows the meshes' metric size and not the estimator's depth, which monocular
             estimators get wrong by a per-track factor (False: the estimator's depth, as before).
-        threads: torch intra-op threads of the optimisation loop (0: leave torch's setting); see
-            :func:`torch_threads`.
+        threads: torch intra-op threads of the alignment, its setup and optimisation loop (0: leave
+            torch's setting); see :func:`torch_threads`.
     """
 
     iterations: tuple[int, int, int] = (500, 500, 1500)
@@ -294,6 +294,13 @@ def _camera_frame_roots(people: BoundaryPeople, R: np.ndarray, t: np.ndarray) ->
 def align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignConfig = AlignConfig(),
                    skip: bool = False) -> AlignedBoundary:
     """Place the boundary people of one cut in its shared space (``skip=True``: the ``no_align`` ablation)."""
+    # The setup's tensor ops are small too: on a busy machine a second thread's wake-up cost 15 ms per
+    # 3802 x 3 product (the scale's visible-vertex projections), longer than the product itself.
+    with torch_threads(config.threads):
+        return _align_boundary(people, space, config, skip)
+
+
+def _align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignConfig, skip: bool) -> AlignedBoundary:
     maps, valid = point_maps(space)
     fitted = keypoint_fitted_pelvis(people, space.K, config.keypoint_confidence) if config.fit_scale_to_keypoints \
         else None
@@ -312,12 +319,11 @@ def align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignConf
     problem = _Problem(people, space, maps, valid, config)
     state = problem.state(R0, t0, orient, pelvis)
     losses = []
-    with torch_threads(config.threads):
-        if config.staged:
-            losses += problem.run(state, config.iterations[1], stage=2)
-            losses += problem.run(state, config.iterations[2], stage=3)
-        else:
-            losses += problem.run(state, config.iterations[1] + config.iterations[2], stage=3)
+    if config.staged:
+        losses += problem.run(state, config.iterations[1], stage=2)
+        losses += problem.run(state, config.iterations[2], stage=3)
+    else:
+        losses += problem.run(state, config.iterations[1] + config.iterations[2], stage=3)
     R, t, orient, pelvis = problem.export(state)
     return AlignedBoundary(R=R, t=t, orient=orient, pelvis=pelvis, losses=np.asarray(losses),
                            method="three_stage" if config.staged else "joint", **common)
@@ -361,30 +367,76 @@ def torch_threads(count: int):
 
 
 DTYPE = torch.float64
-"""Precision of the alignment's optimisation (float32 measured no faster here: the loop is bound by op count)."""
+"""Precision of the alignment's optimisation (float32 measured 6% faster per stage-3 iteration, 2.02 against
+2.15 ms: the loop is bound by op count, so the precision is not worth trading)."""
+
+_SKEW_BASIS = torch.zeros(3, 9, dtype=DTYPE)  # [k]x = [[0, -z, y], [z, 0, -x], [-y, x, 0]], flattened
+_SKEW_BASIS[0, 7], _SKEW_BASIS[0, 5] = 1.0, -1.0
+_SKEW_BASIS[1, 2], _SKEW_BASIS[1, 6] = 1.0, -1.0
+_SKEW_BASIS[2, 3], _SKEW_BASIS[2, 1] = 1.0, -1.0
+_ROTVEC_BASIS = torch.cat([_SKEW_BASIS, torch.kron(torch.eye(3, dtype=DTYPE), torch.ones(1, 3, dtype=DTYPE)),
+                           torch.kron(torch.ones(1, 3, dtype=DTYPE), torch.eye(3, dtype=DTYPE))], dim=1)
+"""``(3, 27)``: ``k @ _ROTVEC_BASIS`` holds, for every entry ``(i, j)`` of a 3x3 matrix, ``[k]x[i, j]``,
+``k[i]`` and ``k[j]``."""
+_EYE9 = torch.eye(3, dtype=DTYPE).flatten()
+
+
+def _rotvec_to_rotmat(rotvec: torch.Tensor, epsilon: float = 1e-6) -> torch.Tensor:
+    """``(N, 3)`` axis-angle to ``(N, 3, 3)``: ``roma.rotvec_to_rotmat`` to rounding, in a third of the tensor ops.
+
+    The same Rodrigues formula ``I + sin θ [k]x + (1 - cos θ) (k kᵀ - I)`` and the same first-order
+    ``I + [r]x`` below ``epsilon`` (the cameras' rotation starts at exactly zero), written on ``(N, 9)``
+    after one small matrix product: the optimisation loops are bound by the number of tensor ops.
+    """
+    theta = torch.linalg.vector_norm(rotvec, dim=-1, keepdim=True)
+    clamped = theta.clamp_min(epsilon)
+    skew, row, col = ((rotvec / clamped) @ _ROTVEC_BASIS.to(rotvec.dtype)).split(9, dim=-1)
+    eye = _EYE9.to(rotvec.dtype)
+    rodrigues = eye + torch.sin(theta) * skew + (1 - torch.cos(theta)) * (row * col - eye)
+    first_order = eye + clamped * skew   # below epsilon, clamped * (r / clamped) = r
+    return torch.where(theta < epsilon, first_order, rodrigues).reshape(-1, 3, 3)
 
 
 class _Problem:
-    """The batched alignment objective of one cut (tensors over 2 frames x P people)."""
+    """The batched alignment objective of one cut (tensors over 2 frames x P people, flattened to ``2P``).
+
+    Written for a loop bound by the count of tensor ops, not arithmetic: each root is one ``(6,)``
+    parameter row (axis-angle, pelvis) and both cameras one ``(2, 6)`` tensor (rotation update,
+    centre); joints and the vertex subsample are posed in one product; intrinsics and the 2D
+    normalisation are folded into each camera's ``3x3``; every mean's count and λ is a precomputed
+    weight; the depth loss's lookups are flat gathers. Points are stored coordinate-major
+    (``(2P, 3, N)``), so posing is ``R X + t`` in one ``baddbmm`` and the sums over coordinates are
+    adds of contiguous rows.
+    """
 
     def __init__(self, people: BoundaryPeople, space: SharedSpace, maps: np.ndarray, valid: np.ndarray,
                  config: AlignConfig):
         self.config = config
         h, w = space.image_size
-        self.norm = 0.5 * max(h, w)
+        norm = 0.5 * max(h, w)
+        self.norm = norm
         self.size = (h, w)
         v_count = people.local_vertices.shape[2]
         self.vertex_ids = np.linspace(0, v_count - 1, min(config.max_vertices, v_count)).round().astype(int)
         as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=DTYPE)
-        self.present = torch.as_tensor(people.present)
-        self.K = as_t(space.K)
-        self.local_joints = as_t(people.local_joints)
-        self.local_vertices = as_t(people.local_vertices[:, :, self.vertex_ids])
-        self.local_normals = as_t(vertex_normals(people.local_vertices, people.faces)[:, :, self.vertex_ids])
+        present = torch.as_tensor(people.present)
+        self.p_count = p_count = present.shape[1]
+        rows = 2 * p_count
+        coordinate_major = lambda a: as_t(a).reshape(rows, *a.shape[-2:]).transpose(1, 2).contiguous()
+        self.joint_count = people.local_joints.shape[2]
+        self.vertex_count = len(self.vertex_ids)
+        self.local_joints = coordinate_major(people.local_joints)                         # (2P, 3, J)
+        self.local_points = torch.cat([self.local_joints,
+                                       coordinate_major(people.local_vertices[:, :, self.vertex_ids])], dim=2)
+        normals = vertex_normals(people.local_vertices, people.faces)[:, :, self.vertex_ids]
+        self.local_normals = coordinate_major(normals)
+        # Normalised pixels (units of half the larger image side) come straight out of K_n = diag(1/norm, 1/norm, 1) K.
+        self.K_norm = torch.tensor([1.0 / norm, 1.0 / norm, 1.0], dtype=DTYPE)[:, None] * as_t(space.K)
         kp = people.keypoints
-        self.kp_uv = as_t(kp[..., :2])
-        self.kp_weight = as_t(np.where(kp[..., 2] >= config.keypoint_confidence, kp[..., 2], 0.0)) \
-            * self.present[..., None]
+        kp_weight = as_t(np.where(kp[..., 2] >= config.keypoint_confidence, kp[..., 2], 0.0)) * present[..., None]
+        self.kp_uv = coordinate_major(kp[..., :2] / norm)                                 # (2P, 2, J)
+        kp_mean = (kp_weight / kp_weight.sum().clamp(min=1e-9)).reshape(rows, 1, kp.shape[-2])  # a weighted mean
+        self.kp_weight = {2: config.w2d_stage2 * kp_mean, 3: config.w2d_stage3 * kp_mean}
         masks = people.masks
         others = np.zeros_like(masks)
         for k in range(2):
@@ -395,81 +447,105 @@ class _Problem:
         for k in range(2):
             for p in np.nonzero(people.present[k])[0]:
                 outside = ~(masks[k, p] | others[k, p])
-                dist[k, p] = ndimage.distance_transform_edt(outside) / self.norm if masks[k, p].any() else 0.0
+                dist[k, p] = ndimage.distance_transform_edt(outside) / norm if masks[k, p].any() else 0.0
         self.sil_dist = torch.as_tensor(dist, dtype=DTYPE).reshape(-1, 1, h, w)
-        self.masks = torch.as_tensor(masks)
-        self.point_map = as_t(maps)
-        self.point_valid = torch.as_tensor(valid)
+        # grid_sample's coordinates (align_corners): pixel / (size - 1) * 2 - 1, from normalised pixels.
+        self.grid_scale = torch.tensor([[norm * 2 / (w - 1)], [norm * 2 / (h - 1)]], dtype=DTYPE)
+        presence = present.to(DTYPE).reshape(rows, 1)
+        self.sil_weight = config.w_sil * presence / (presence.sum() * self.vertex_count).clamp(min=1)
+        # Depth: which pixels of each person count (in the mask, a valid scene point, person present) and
+        # the scene points, flattened for one gather each: person (k, p)'s pixel i is at (k P + p) H W + i.
+        usable = torch.as_tensor(masks) & torch.as_tensor(valid)[:, None] & present[..., None, None]
+        self.depth_usable = usable.reshape(-1)
+        self.person_offset = (torch.arange(rows) * (h * w))[:, None]
+        self.frame_offset = (torch.arange(2).repeat_interleave(p_count) * (h * w))[:, None]
+        self.point_map = as_t(maps).reshape(-1, 3)
 
     def state(self, R, t, orient, pelvis) -> dict[str, torch.Tensor]:
         as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=DTYPE)
         R = as_t(R)
-        return {
-            "R0": R, "cam_rot": torch.zeros(2, 3, dtype=DTYPE, requires_grad=True),
-            "cam_centre": camera_centre(R, as_t(t)).clone().requires_grad_(True),
-            "orient": as_t(orient).clone().requires_grad_(True),
-            "pelvis": as_t(pelvis).clone().requires_grad_(True),
-        }
+        camera = torch.cat([torch.zeros(2, 3, dtype=DTYPE), camera_centre(R, as_t(t))], dim=-1)
+        return {"R0": R, "camera": camera.requires_grad_(True),                 # (2, 6): rotation update, centre
+                "roots": torch.cat([as_t(orient), as_t(pelvis)], dim=-1).requires_grad_(True)}  # (2, P, 6)
 
     def cameras(self, state) -> tuple[torch.Tensor, torch.Tensor]:
-        R = axis_angle_to_matrix(state["cam_rot"]) @ state["R0"]
-        t = -(R @ state["cam_centre"].unsqueeze(-1)).squeeze(-1)
+        return self._cameras(_rotvec_to_rotmat(state["camera"][:, :3]), state)
+
+    @staticmethod
+    def _cameras(update: torch.Tensor, state) -> tuple[torch.Tensor, torch.Tensor]:
+        R = update @ state["R0"]
+        t = -(R @ state["camera"][:, 3:].unsqueeze(-1)).squeeze(-1)
         return R, t
 
-    def loss(self, state, stage: int) -> torch.Tensor:
+    def _projection(self, R: torch.Tensor, t: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Per person row: ``(2P, 3, 3)`` ``K_n R`` and ``(2P, 3, 1)`` ``K_n t`` of their frame's camera."""
+        matrix = (self.K_norm @ R).repeat_interleave(self.p_count, dim=0)
+        offset = (self.K_norm @ t.unsqueeze(-1)).repeat_interleave(self.p_count, dim=0)
+        return matrix, offset
+
+    def loss(self, state, stage: int, fixed_cameras: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
+        """The stage's objective; ``fixed_cameras`` ``(R, t)`` when the cameras are not optimised."""
         cfg = self.config
-        R, t = self.cameras(state)
-        rot = axis_angle_to_matrix(state["orient"])                                # (2, P, 3, 3)
-        pelvis = state["pelvis"].unsqueeze(-2)
-        joints = self.local_joints @ rot.transpose(-1, -2) + pelvis               # (2, P, 24, 3)
-        R_b, t_b = R[:, None], t[:, None]
-        uv = project(world_to_camera(joints, R_b, t_b), self.K[:, None])
-        err2d = ((uv - self.kp_uv) / self.norm).pow(2).sum(-1)
-        loss2d = (err2d * self.kp_weight).sum() / self.kp_weight.sum().clamp(min=1e-9)
+        roots = state["roots"].reshape(-1, 6)
+        if fixed_cameras is None:  # one rotation call for the roots and the camera updates
+            rotations = _rotvec_to_rotmat(torch.cat([roots[:, :3], state["camera"][:, :3]]))
+            rot, update = rotations[:-2], rotations[-2:]
+            R, t = self._cameras(update, state)
+        else:
+            rot = _rotvec_to_rotmat(roots[:, :3])
+            R, t = fixed_cameras
+        local = self.local_joints if stage == 2 else self.local_points
+        world = torch.baddbmm(roots[:, 3:].unsqueeze(-1), rot, local)            # (2P, 3, N)
+        matrix, offset = self._projection(R, t)
+        h = torch.baddbmm(offset, matrix, world)
+        uv = h[:, :2] / h[:, 2:].clamp(min=1e-6)                                  # normalised pixels
         if stage == 2:
-            return cfg.w2d_stage2 * loss2d
-        verts = self.local_vertices @ rot.transpose(-1, -2) + pelvis              # (2, P, V, 3)
-        cam = world_to_camera(verts, R_b, t_b)
-        vuv = project(cam, self.K[:, None])
+            return ((uv - self.kp_uv).square() * self.kp_weight[2]).sum()
+        uv, vuv = uv.split([self.joint_count, self.vertex_count], dim=2)
+        verts = world[:, :, self.joint_count:]
+        loss2d = ((uv - self.kp_uv).square() * self.kp_weight[3]).sum()
         # Silhouette: bilinear sample of the distance transform at the projected vertices.
-        h, w = self.size
-        grid = torch.stack([vuv[..., 0] / (w - 1) * 2 - 1, vuv[..., 1] / (h - 1) * 2 - 1], dim=-1)
-        sil = torch.nn.functional.grid_sample(self.sil_dist, grid.reshape(-1, 1, grid.shape[-2], 2), align_corners=True,
-                                              padding_mode="border").reshape(verts.shape[:-1])
-        present = self.present[..., None].to(DTYPE)
-        loss_sil = (sil * present).sum() / (present.sum() * verts.shape[-2]).clamp(min=1)
+        grid = (vuv * self.grid_scale - 1).transpose(1, 2).unsqueeze(1)           # (2P, 1, V, 2)
+        sil = torch.nn.functional.grid_sample(self.sil_dist, grid, align_corners=True, padding_mode="border")
+        loss_sil = (sil.reshape(self.sil_weight.shape[0], self.vertex_count) * self.sil_weight).sum()
         # Depth: camera-facing vertices inside the mask vs the scene point at their pixel.
-        with torch.no_grad():  # which vertices face the camera: a selection, not a gradient path
-            normals_cam = self.local_normals @ (R.unsqueeze(1) @ rot).transpose(-1, -2)
-            facing = normals_cam[..., 2] < 0
-        ui = vuv[..., 0].detach().round().long().clamp(0, w - 1)
-        vi = vuv[..., 1].detach().round().long().clamp(0, h - 1)
-        frame = torch.arange(2)[:, None, None].expand_as(ui)
-        person = torch.arange(ui.shape[1])[None, :, None].expand_as(ui)
-        in_mask = self.masks[frame, person, vi, ui] & self.point_valid[frame, vi, ui] & facing
-        in_mask &= self.present[..., None]
-        target = self.point_map[frame, vi, ui]
-        d2 = (verts - target).pow(2).sum(-1)
-        if cfg.depth_robust_scale > 0:  # Geman-McClure, in m²: quadratic near 0, flat for outliers
+        with torch.no_grad():  # which vertices and pixels: a selection, not a gradient path
+            normal_z = (R.repeat_interleave(self.p_count, dim=0)[:, 2:] @ rot) @ self.local_normals   # (2P, 1, V)
+            pixels = (vuv * self.norm).round().long()
+            height, width = self.size
+            pixel = pixels[:, 1].clamp(0, height - 1) * width + pixels[:, 0].clamp(0, width - 1)  # (2P, V)
+            use = self.depth_usable[self.person_offset + pixel] & (normal_z[:, 0] < 0)
+            target = self.point_map.index_select(0, (self.frame_offset + pixel).flatten())
+            target = target.reshape(*pixel.shape, 3).transpose(1, 2)
+            robust = cfg.depth_robust_scale > 0
             sigma2 = cfg.depth_robust_scale ** 2
-            d2 = sigma2 * d2 / (d2 + sigma2)
-        loss_depth = (d2 * in_mask).sum() / in_mask.sum().clamp(min=1)
-        return cfg.w2d_stage3 * loss2d + cfg.w_sil * loss_sil + cfg.w_depth * loss_depth
+            use = use.to(DTYPE)
+            depth_weight = use * (cfg.w_depth * (sigma2 if robust else 1.0) / use.sum().clamp(min=1))
+        d2 = (verts - target).square().sum(1)
+        if robust:  # Geman-McClure, in m²: σ² d² / (d² + σ²) (σ² is in the weight), flat for outliers
+            d2 = d2 / (d2 + sigma2)
+        return loss2d + loss_sil + (d2 * depth_weight).sum()
 
     def run(self, state, iterations: int, stage: int) -> list[float]:
         if iterations <= 0:
             return []
         cfg = self.config
-        groups = [{"params": [state["orient"], state["pelvis"]], "lr": cfg.lr_root}]
-        if stage == 3 and cfg.refine_cameras:
-            groups.append({"params": [state["cam_rot"], state["cam_centre"]], "lr": cfg.lr_camera})
-        opt = torch.optim.AdamW(groups, weight_decay=0.0)
+        groups = [{"params": [state["roots"]], "lr": cfg.lr_root}]
+        refine = stage == 3 and cfg.refine_cameras
+        fixed = None
+        if refine:
+            groups.append({"params": [state["camera"]], "lr": cfg.lr_camera})
+        else:
+            with torch.no_grad():
+                fixed = self.cameras(state)
+        # fused: one kernel per parameter group (the loop is bound by op count).
+        opt = torch.optim.AdamW(groups, weight_decay=0.0, fused=True)
         # Linear decay to a tenth: large early steps, settled late ones.
         sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda i: 1.0 - 0.9 * i / iterations)
         losses = []
         for _ in range(iterations):
             opt.zero_grad(set_to_none=True)
-            loss = self.loss(state, stage)
+            loss = self.loss(state, stage, fixed)
             loss.backward()
             opt.step()
             sched.step()
@@ -479,5 +555,5 @@ class _Problem:
     def export(self, state) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         with torch.no_grad():
             R, t = self.cameras(state)
-            return (R.double().numpy(), t.double().numpy(), state["orient"].detach().double().numpy(),
-                    state["pelvis"].detach().double().numpy())
+            roots = state["roots"].detach().double().numpy()
+            return R.double().numpy(), t.double().numpy(), roots[..., :3].copy(), roots[..., 3:].copy()

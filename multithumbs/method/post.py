@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from multithumbs.geometry import project, world_to_camera
+from multithumbs.conventions import NUM_JOINTS
 from multithumbs.method.align import torch_threads
 
 
@@ -133,50 +133,23 @@ def _post_process(data: PostInput, body, config: PostConfig, vposer) -> PostOutp
     p_count, t_count = data.valid.shape
     if p_count == 0 or config.iterations <= 0:
         return PostOutput(data.global_orient, data.body_pose, data.betas, data.transl, np.zeros(0))
-    as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float64)
-    valid = torch.as_tensor(data.valid)
     if config.smooth_order not in (1, 2):
         raise ValueError(f"smooth_order must be 1 or 2, got {config.smooth_order}")
-    windows = torch.as_tensor(_windows(data.valid, data.cut_frames, data.matched_at_cut, config.smooth_order))
-    norm = 0.5 * max(data.image_size)
-    K, R, t = as_t(data.K), as_t(data.R), as_t(data.t)
-    kp = as_t(data.keypoints)
-    kp_w = torch.where(kp[..., 2] >= config.keypoint_confidence, kp[..., 2], 0.0) * valid[..., None]
+    terms = _Terms(data, config)
+    as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float64)
     pose0, transl0 = as_t(data.body_pose), as_t(data.transl)
     orient = as_t(data.global_orient).clone().requires_grad_(True)
     transl = transl0.clone().requires_grad_(True)
     body_pose = pose0.clone().requires_grad_(True)
     betas = as_t(data.betas).clone().requires_grad_(True)
-    # Cross-camera terms: (person, cut) pairs matched with both boundary frames valid.
-    cross = [(p, int(c)) for p in range(p_count) for i, c in enumerate(data.cut_frames)
-             if data.matched_at_cut[p, i] and data.valid[p, c - 1] and data.valid[p, c]]
-    opt = torch.optim.AdamW([orient, transl, body_pose, betas], lr=config.lr, weight_decay=0.0)
+    # fused: one kernel for the four parameters' update (the loop is bound by op count, not arithmetic).
+    opt = torch.optim.AdamW([orient, transl, body_pose, betas], lr=config.lr, weight_decay=0.0, fused=True)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda i: 1.0 - 0.9 * i / config.iterations)
-    vmask = valid.double()
     losses = []
     for _ in range(config.iterations):
         opt.zero_grad(set_to_none=True)
         joints = body.joints(orient, body_pose, betas, transl).double()         # (P, T, 24, 3)
-        diff = joints[:, 1:] - joints[:, :-1]
-        if config.smooth_order == 2:
-            diff = diff[:, 1:] - diff[:, :-1]
-        smooth = (diff.pow(2).sum(-1).mean(-1) * windows).sum() / windows.sum().clamp(min=1)
-        pose_dev = ((body_pose - pose0).pow(2).sum((-1, -2)) * vmask).sum() / vmask.sum().clamp(min=1)
-        prior = config.w_shape * betas.pow(2).sum(-1).mean() + config.w_pose_prior * pose_dev
-        uv = project(world_to_camera(joints, R, t), K)
-        err = ((uv - kp[..., :2]) / norm).pow(2).sum(-1)
-        data2d = (err * kp_w).sum() / kp_w.sum().clamp(min=1e-9)
-        root = ((transl - transl0).pow(2).sum(-1) * vmask).sum() / vmask.sum().clamp(min=1)
-        loss = config.w_smooth * (smooth + prior) + config.w_2d * data2d + config.w_root * root
-        if cross:
-            terms = []
-            for p, c in cross:
-                for src, dst in ((c - 1, c), (c, c - 1)):
-                    uv_x = project(world_to_camera(joints[p, src], R[dst], t[dst]), K[dst])
-                    w = kp_w[p, dst]
-                    terms.append((((uv_x - kp[p, dst, :, :2]) / norm).pow(2).sum(-1) * w).sum()
-                                 / w.sum().clamp(min=1e-9))
-            loss = loss + config.w_cross * torch.stack(terms).mean()
+        loss = terms.loss(joints, body_pose, pose0, betas, transl, transl0)
         loss.backward()
         opt.step()
         sched.step()
@@ -186,3 +159,74 @@ def _post_process(data: PostInput, body, config: PostConfig, vposer) -> PostOutp
     return PostOutput(np.where(keep[..., None], out(orient), data.global_orient),
                       np.where(keep[..., None, None], out(body_pose), data.body_pose), out(betas),
                       np.where(keep[..., None], out(transl), data.transl), np.asarray(losses))
+
+
+class _Terms:
+    """The objective of :func:`post_process` with every constant factored out of the loop.
+
+    Each mean of the module docstring becomes a sum against a precomputed weight (mask over count,
+    times the term's λ), and each camera's intrinsics and the 2D normalisation are folded into one
+    ``(3, 3)`` matrix, so an iteration runs few tensor ops (the loop is bound by their count).
+    """
+
+    def __init__(self, data: PostInput, config: PostConfig):
+        as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float64)
+        self.order = config.smooth_order
+        valid = torch.as_tensor(data.valid)
+        windows = torch.as_tensor(_windows(data.valid, data.cut_frames, data.matched_at_cut, config.smooth_order),
+                                  dtype=torch.float64)
+        # Smoothness: mean over joints of the squared difference, mean over scored windows.
+        self.smooth_w = (config.w_smooth * windows / (windows.sum().clamp(min=1) * NUM_JOINTS))[..., None, None]
+        vmask = valid.double()
+        self.pose_w = (config.w_smooth * config.w_pose_prior * vmask / vmask.sum().clamp(min=1))[..., None, None]
+        self.shape_w = config.w_smooth * config.w_shape / data.betas.shape[0]
+        self.root_w = (config.w_root * vmask / vmask.sum().clamp(min=1))[..., None]
+        # 2D: pixels in units of half the larger image side, through K R x + K t (K's last row is 0 0 1,
+        # so the third coordinate is the camera depth).
+        norm = 0.5 * max(data.image_size)
+        scale = torch.tensor([1.0 / norm, 1.0 / norm, 1.0], dtype=torch.float64)[:, None]
+        K, R, t = as_t(data.K), as_t(data.R), as_t(data.t)
+        self.KR = scale * (K @ R)                                               # (T, 3, 3)
+        self.Kt = (scale * (K @ t.unsqueeze(-1))).squeeze(-1)                    # (T, 3)
+        kp = as_t(data.keypoints)
+        kp_w = torch.where(kp[..., 2] >= config.keypoint_confidence, kp[..., 2], 0.0) * valid[..., None]
+        # Coordinate-major (..., 2, 24) like the projections below.
+        self.kp_uv = (kp[..., :2] / norm).transpose(-1, -2).contiguous()
+        self.kp_w = (config.w_2d * kp_w / kp_w.sum().clamp(min=1e-9)).unsqueeze(-2)
+        # Cross-camera terms (person, cut) matched with both boundary frames valid: each direction's
+        # joints at one boundary frame against the keypoints at the other, each pair a weighted mean.
+        pairs = [(p, src, dst) for p in range(data.valid.shape[0]) for i, c in enumerate(data.cut_frames)
+                 if data.matched_at_cut[p, i] and data.valid[p, c - 1] and data.valid[p, c]
+                 for src, dst in ((c - 1, c), (c, c - 1))]
+        self.cross = None
+        if pairs:
+            person, src, dst = (torch.as_tensor([pair[k] for pair in pairs]) for k in range(3))
+            w = kp_w[person, dst]
+            self.cross = (person * data.valid.shape[1] + src, self.KR[dst], self.Kt[dst], self.kp_uv[person, dst],
+                          (config.w_cross * w / (w.sum(-1, keepdim=True).clamp(min=1e-9) * len(pairs))).unsqueeze(-2))
+
+    @staticmethod
+    def _normalised_pixels(points: torch.Tensor, KR: torch.Tensor, Kt: torch.Tensor) -> torch.Tensor:
+        """``(..., 2, N)`` normalised pixels of ``points (..., N, 3)`` (depth clamped as in :func:`project`).
+
+        Coordinate-major, so the gradient's sum over ``u, v`` for the shared depth adds two rows instead of
+        reducing a trailing dimension of 2 (a slow reduction on CPU).
+        """
+        h = KR @ points.transpose(-1, -2) + Kt.unsqueeze(-1)
+        return h[..., :2, :] / h[..., 2:, :].clamp(min=1e-6)
+
+    def loss(self, joints, body_pose, pose0, betas, transl, transl0) -> torch.Tensor:
+        """The objective for world joints ``(P, T, 24, 3)`` of the current parameters (``pose0``,
+        ``transl0``: the propagated estimates the priors pull towards)."""
+        diff = joints[:, 1:] - joints[:, :-1]
+        if self.order == 2:
+            diff = diff[:, 1:] - diff[:, :-1]
+        loss = (diff.square() * self.smooth_w).sum()
+        loss = loss + ((body_pose - pose0).square() * self.pose_w).sum() + self.shape_w * betas.square().sum()
+        loss = loss + ((self._normalised_pixels(joints, self.KR, self.Kt) - self.kp_uv).square() * self.kp_w).sum()
+        loss = loss + ((transl - transl0).square() * self.root_w).sum()
+        if self.cross is not None:
+            rows, KR, Kt, kp_uv, weight = self.cross
+            uv = self._normalised_pixels(joints.flatten(0, 1).index_select(0, rows), KR, Kt)
+            loss = loss + ((uv - kp_uv).square() * weight).sum()
+        return loss

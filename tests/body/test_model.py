@@ -184,6 +184,63 @@ def test_gradients_reach_every_input():
     assert all(x.grad is not None and x.grad.abs().sum() > 0 for x in inputs)
 
 
+
+def test_joints_equal_the_full_forward_pass_and_its_gradients():
+    # joints() walks the kinematic chain itself (for speed): it must stay SMPL's posing, values and gradients.
+    body = BodyModel(dtype=torch.float64)
+    generator = torch.Generator().manual_seed(11)
+    orient, pose = (x.double() for x in random_pose(generator, 2, 3, scale=1.0))
+    pose[0, 0] = 0.0  # zero rotations: the identity, with finite gradients
+    betas = torch.randn(2, 10, generator=generator, dtype=torch.float64)
+    transl = torch.randn(2, 3, 3, generator=generator, dtype=torch.float64)
+    inputs = [x.clone().requires_grad_() for x in (orient, pose, betas, transl)]
+    fast = body.joints(*inputs)
+    full = body(*inputs).joints
+    assert fast.shape == (2, 3, 24, 3)
+    torch.testing.assert_close(fast, full, atol=1e-12, rtol=0)
+    weights = torch.randn(fast.shape, generator=generator, dtype=torch.float64)
+    for a, b in zip(torch.autograd.grad((fast * weights).sum(), inputs),
+                    torch.autograd.grad((full * weights).sum(), inputs), strict=True):
+        torch.testing.assert_close(a, b, atol=1e-10, rtol=1e-10)
+    # The float32 model: the same joints to float32 rounding; no transl; numpy inputs.
+    single = load_body_model()
+    torch.testing.assert_close(single.joints(orient.numpy(), pose.numpy(), betas.numpy()),
+                               single(orient, pose, betas).joints, atol=2e-6, rtol=0)
+
+
+def test_rodrigues_equals_smplx_batch_rodrigues():
+    from smplx.lbs import batch_rodrigues
+
+    from multithumbs.body.model import rodrigues_coordinate_major
+    generator = torch.Generator().manual_seed(12)
+    rotvec = torch.randn(50, 3, generator=generator, dtype=torch.float64) * 2.0
+    rotvec[:3] = 0.0
+    rotvec[3:6] *= 1e-9  # near the angle offset: smplx's (slightly non-orthonormal) result is kept
+    ours = rodrigues_coordinate_major(rotvec.T.reshape(3, 5, 10))
+    assert ours.shape == (3, 3, 5, 10)
+    torch.testing.assert_close(ours.permute(2, 3, 0, 1).reshape(50, 3, 3), batch_rodrigues(rotvec), atol=1e-14, rtol=0)
+
+
+def test_kinematic_levels_pose_any_tree_order_like_smplx():
+    from smplx.lbs import batch_rigid_transform, batch_rodrigues
+
+    from multithumbs.body.model import _KinematicLevels
+    # SMPL's tree (breadth-first: levels are slices) and a depth-first tree (levels need reordering).
+    depth_first = np.array([-1, 0, 1, 2, 0, 4, 5, 0, 7, 8, 9, 8, 11])
+    generator = torch.Generator().manual_seed(13)
+    for parents in (np.asarray(SMPL_PARENTS), depth_first):
+        count = len(parents)
+        rotations = batch_rodrigues(torch.randn(4 * count, 3, generator=generator, dtype=torch.float64))
+        rest = torch.randn(4, count, 3, generator=generator, dtype=torch.float64)
+        expected, _ = batch_rigid_transform(rotations.reshape(4, count, 3, 3), rest, torch.as_tensor(parents),
+                                            dtype=torch.float64)
+        posed = _KinematicLevels(parents).pose(rotations.reshape(4, count, 3, 3).permute(2, 3, 1, 0),
+                                               rest.permute(2, 1, 0))
+        torch.testing.assert_close(posed.permute(2, 1, 0), expected, atol=1e-12, rtol=0)
+    with pytest.raises(InputError, match="kinematic tree"):
+        _KinematicLevels(np.array([-1, 2, 0]))
+
+
 def test_a_renamed_npz_from_the_environment_loads_identically(body, arrays, tmp_path, monkeypatch):
     path = write_procedural_smpl(tmp_path / "my_body.npz")
     monkeypatch.setenv(body_model.MODEL_ENV_VAR, str(path))

@@ -50,6 +50,11 @@ def test_a_cut_with_nobody_on_one_side_is_a_documented_outcome(tiny, body):
     aligned = align_boundary(people, tiny.spaces[0], AlignConfig(iterations=(0, 20, 20)))
     assert not aligned.present[1].any() and aligned.present[0].any()
     assert np.isfinite(aligned.pelvis[0][aligned.present[0]]).all() and np.isfinite(aligned.scale)
+    # Nobody at all (no person slot): the cameras stay, nothing to place, no error.
+    nobody = dataclasses.replace(people, **{f.name: getattr(people, f.name)[:, :0]
+                                            for f in dataclasses.fields(people) if f.name != "faces"})
+    aligned = align_boundary(nobody, tiny.spaces[0], AlignConfig(iterations=(0, 5, 5)))
+    assert aligned.pelvis.shape == (2, 0, 3) and np.all(aligned.losses == 0)
 
 
 def _depth_corrupted(people, factors):
@@ -99,3 +104,101 @@ def test_torch_threads_are_restored():
     with pytest.raises(RuntimeError), torch_threads(1):
         raise RuntimeError("boom")
     assert torch.get_num_threads() == before
+
+
+def test_rotation_matches_roma_at_every_angle():
+    import roma
+    import torch
+
+    from multithumbs.method.align import _rotvec_to_rotmat
+    generator = torch.Generator().manual_seed(3)
+    rotvec = torch.randn(40, 3, generator=generator, dtype=torch.float64)
+    rotvec[:2] = 0.0          # the cameras' update starts at exactly zero: roma's first-order branch
+    rotvec[2:5] *= 1e-8
+    rotvec[5:8] *= 1e-4
+    rotvec[8:10] *= 3.0
+    rotvec.requires_grad_(True)
+    weights = torch.randn(40, 3, 3, generator=generator, dtype=torch.float64)
+    ours, theirs = _rotvec_to_rotmat(rotvec), roma.rotvec_to_rotmat(rotvec)
+    torch.testing.assert_close(ours, theirs, atol=1e-14, rtol=0)
+    torch.testing.assert_close(torch.autograd.grad((ours * weights).sum(), rotvec)[0],
+                               torch.autograd.grad((theirs * weights).sum(), rotvec)[0], atol=1e-12, rtol=0)
+
+
+def _reference_loss(people, space, maps, valid, config, R0, cam_rot, cam_centre, orient, pelvis, stage):
+    """The alignment objective written plainly (module docstring), as the loop computed it before it was
+    restructured for speed: :class:`_Problem` must give the same value and gradients."""
+    import torch
+    from scipy import ndimage
+
+    from multithumbs import geometry
+    h, w = space.image_size
+    norm = 0.5 * max(h, w)
+    ids = np.linspace(0, people.local_vertices.shape[2] - 1, config.max_vertices).round().astype(int)
+    as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float64)  # noqa: E731
+    present = torch.as_tensor(people.present)
+    kp = people.keypoints
+    kp_weight = as_t(np.where(kp[..., 2] >= config.keypoint_confidence, kp[..., 2], 0.0)) * present[..., None]
+    R = geometry.axis_angle_to_matrix(cam_rot) @ R0
+    t = -(R @ cam_centre.unsqueeze(-1)).squeeze(-1)
+    rot = geometry.axis_angle_to_matrix(orient)
+    joints = as_t(people.local_joints) @ rot.transpose(-1, -2) + pelvis.unsqueeze(-2)
+    uv = geometry.project(geometry.world_to_camera(joints, R[:, None], t[:, None]), as_t(space.K)[:, None])
+    err = ((uv - as_t(kp[..., :2])) / norm).pow(2).sum(-1)
+    loss2d = (err * kp_weight).sum() / kp_weight.sum()
+    if stage == 2:
+        return config.w2d_stage2 * loss2d
+    verts = as_t(people.local_vertices[:, :, ids]) @ rot.transpose(-1, -2) + pelvis.unsqueeze(-2)
+    vuv = geometry.project(geometry.world_to_camera(verts, R[:, None], t[:, None]), as_t(space.K)[:, None])
+    masks = people.masks
+    dist = np.zeros(masks.shape, np.float32)  # stored in single precision
+    for k in range(2):
+        others = masks[k].any(axis=0)[None] & ~masks[k]
+        for p in np.nonzero(people.present[k])[0]:
+            dist[k, p] = ndimage.distance_transform_edt(~(masks[k, p] | others[p])) / norm
+    grid = torch.stack([vuv[..., 0] / (w - 1) * 2 - 1, vuv[..., 1] / (h - 1) * 2 - 1], dim=-1)
+    sil = torch.nn.functional.grid_sample(as_t(dist).reshape(-1, 1, h, w), grid.reshape(-1, 1, len(ids), 2),
+                                          align_corners=True, padding_mode="border").reshape(verts.shape[:-1])
+    loss_sil = (sil * present[..., None]).sum() / (present.sum() * len(ids))
+    normals = as_t(geometry.vertex_normals(people.local_vertices, people.faces)[:, :, ids])
+    facing = (normals @ (R.unsqueeze(1) @ rot).transpose(-1, -2))[..., 2] < 0
+    ui = vuv[..., 0].detach().round().long().clamp(0, w - 1)
+    vi = vuv[..., 1].detach().round().long().clamp(0, h - 1)
+    frame = torch.arange(2)[:, None, None].expand_as(ui)
+    person = torch.arange(ui.shape[1])[None, :, None].expand_as(ui)
+    use = torch.as_tensor(masks)[frame, person, vi, ui] & torch.as_tensor(valid)[frame, vi, ui] & facing
+    use &= present[..., None]
+    d2 = (verts - as_t(maps)[frame, vi, ui]).pow(2).sum(-1)
+    if config.depth_robust_scale > 0:
+        sigma2 = config.depth_robust_scale ** 2
+        d2 = sigma2 * d2 / (d2 + sigma2)
+    loss_depth = (d2 * use).sum() / use.sum().clamp(min=1)
+    return config.w2d_stage3 * loss2d + config.w_sil * loss_sil + config.w_depth * loss_depth
+
+
+def test_the_optimised_objective_is_the_documented_one(tiny, body):
+    import torch
+
+    from multithumbs.method.align import _camera_frame_roots, _Problem
+    people = boundary_people(tiny.tracks[0], tiny.tracks[1], body)
+    space = tiny.spaces[0]
+    maps, valid = point_maps(space)
+    generator = torch.Generator().manual_seed(5)
+    for config in (AlignConfig(), AlignConfig(depth_robust_scale=0.0, max_vertices=150)):
+        problem = _Problem(people, space, maps, valid, config)
+        orient, pelvis = _camera_frame_roots(people, space.R, space.t)
+        state = problem.state(space.R, space.t, orient, pelvis)
+        with torch.no_grad():  # away from the start, where nothing is special
+            state["roots"] += 0.05 * torch.randn(state["roots"].shape, generator=generator, dtype=torch.float64)
+            state["camera"] += 0.02 * torch.randn(state["camera"].shape, generator=generator, dtype=torch.float64)
+        for stage in (2, 3):
+            for fixed in (None, problem.cameras(state)):
+                roots, camera = state["roots"], state["camera"]
+                ours = problem.loss(state, stage, None if fixed is None else tuple(x.detach() for x in fixed))
+                reference = _reference_loss(people, space, maps, valid, config, state["R0"], camera[:, :3],
+                                            camera[:, 3:], roots[..., :3], roots[..., 3:], stage)
+                assert float(reference.detach()) > 0
+                torch.testing.assert_close(ours, reference, atol=0, rtol=1e-10)
+                grad_ours = torch.autograd.grad(ours, roots)[0]
+                grad_reference = torch.autograd.grad(reference, roots)[0]
+                torch.testing.assert_close(grad_ours, grad_reference, atol=1e-12, rtol=1e-8)

@@ -53,3 +53,78 @@ def test_vposer_prior_needs_a_model(body):
     data, _ = _static_person(body, frames=4)
     with pytest.raises(ValueError, match="VPoser"):
         post_process(data, body, PostConfig(pose_prior="vposer"))
+
+
+def _reference_loss(data, config, joints, body_pose, betas, transl):
+    """The objective of the module docstring written plainly, as the loop computed it before it was
+    restructured for speed: :class:`multithumbs.method.post._Terms` must give the same value and gradients."""
+    import torch
+
+    from multithumbs.geometry import project, world_to_camera
+    from multithumbs.method.post import _windows
+    as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float64)  # noqa: E731
+    valid = torch.as_tensor(data.valid)
+    windows = torch.as_tensor(_windows(data.valid, data.cut_frames, data.matched_at_cut, config.smooth_order))
+    norm = 0.5 * max(data.image_size)
+    K, R, t, kp = as_t(data.K), as_t(data.R), as_t(data.t), as_t(data.keypoints)
+    kp_w = torch.where(kp[..., 2] >= config.keypoint_confidence, kp[..., 2], 0.0) * valid[..., None]
+    vmask = valid.double()
+    diff = joints[:, 1:] - joints[:, :-1]
+    if config.smooth_order == 2:
+        diff = diff[:, 1:] - diff[:, :-1]
+    smooth = (diff.pow(2).sum(-1).mean(-1) * windows).sum() / windows.sum().clamp(min=1)
+    pose_dev = ((body_pose - as_t(data.body_pose)).pow(2).sum((-1, -2)) * vmask).sum() / vmask.sum()
+    prior = config.w_shape * betas.pow(2).sum(-1).mean() + config.w_pose_prior * pose_dev
+    uv = project(world_to_camera(joints, R, t), K)
+    data2d = ((((uv - kp[..., :2]) / norm).pow(2).sum(-1)) * kp_w).sum() / kp_w.sum()
+    root = ((transl - as_t(data.transl)).pow(2).sum(-1) * vmask).sum() / vmask.sum()
+    loss = config.w_smooth * (smooth + prior) + config.w_2d * data2d + config.w_root * root
+    terms = []
+    for p in range(data.valid.shape[0]):
+        for i, c in enumerate(data.cut_frames):
+            if data.matched_at_cut[p, i] and data.valid[p, c - 1] and data.valid[p, c]:
+                for src, dst in ((c - 1, c), (c, c - 1)):
+                    uv_x = project(world_to_camera(joints[p, src], R[dst], t[dst]), K[dst])
+                    w = kp_w[p, dst]
+                    terms.append(((((uv_x - kp[p, dst, :, :2]) / norm).pow(2).sum(-1)) * w).sum() / w.sum())
+    return loss + config.w_cross * torch.stack(terms).mean()
+
+
+def test_the_optimised_objective_is_the_documented_one():
+    import torch
+
+    from multithumbs.body.model import BodyModel
+    from multithumbs.method.post import _Terms
+    body = BodyModel(dtype=torch.float64)
+    data, _ = _static_person(body, frames=12)
+    rng = np.random.default_rng(4)
+    # Two people, a cut at frame 6 (person 0 matched across it), gaps, noisy keypoints and poses.
+    stack = lambda a: np.concatenate([a, a], axis=0)  # noqa: E731
+    valid = np.ones((2, 12), bool)
+    valid[1, 9:] = False
+    keypoints = stack(data.keypoints) + np.concatenate([rng.normal(0, 3, (2, 12, 24, 2)), np.zeros((2, 12, 24, 1))], -1)
+    keypoints[..., 2] = rng.uniform(0.1, 1.0, (2, 12, 24))
+    data = dataclasses.replace(data, global_orient=stack(data.global_orient), body_pose=stack(data.body_pose),
+                               betas=rng.normal(0, 1, (2, 10)),
+                               transl=stack(data.transl) + [[[1.0, 0.0, 0.0]], [[0.0] * 3]],
+                               valid=valid, keypoints=keypoints, cut_frames=np.array([6]),
+                               matched_at_cut=np.array([[True], [False]]))
+    for config in (PostConfig(), PostConfig(smooth_order=1)):
+        terms = _Terms(data, config)
+        params = [torch.as_tensor(x).clone() + torch.as_tensor(rng.normal(0, 0.05, np.shape(x)))
+                  for x in (data.global_orient, data.body_pose, data.betas, data.transl)]
+        params = [x.requires_grad_() for x in params]
+        orient, pose, betas, transl = params
+        joints = body.joints(orient, pose, betas, transl)
+        ours = terms.loss(joints, pose, torch.as_tensor(data.body_pose), betas, transl, torch.as_tensor(data.transl))
+        reference = _reference_loss(data, config, joints, pose, betas, transl)
+        torch.testing.assert_close(ours, reference, atol=0, rtol=1e-12)
+        for a, b in zip(torch.autograd.grad(ours, params, retain_graph=True), torch.autograd.grad(reference, params),
+                        strict=True):
+            torch.testing.assert_close(a, b, atol=1e-12, rtol=1e-9)
+        # post_process's first loss is this objective at the inputs.
+        first = post_process(data, body, dataclasses.replace(config, iterations=1)).losses[0]
+        start = _reference_loss(data, config, body.joints(*(torch.as_tensor(x) for x in (
+            data.global_orient, data.body_pose, data.betas, data.transl))), torch.as_tensor(data.body_pose),
+            torch.as_tensor(data.betas), torch.as_tensor(data.transl))
+        assert abs(first - float(start)) <= 1e-12 * float(start)
