@@ -53,8 +53,9 @@ def write_outputs(out_dir: str, name: str, variant: str, video_path: str, method
     if stamp_path.exists():  # the same result's outputs are already there: a re-run writes nothing
         try:
             previous = json.loads(stamp_path.read_text())
-            if previous.get("stamp") == json.loads(json.dumps(stamp)) and all(Path(f).exists()
-                                                                              for f in previous["files"].values()):
+            # Compared as JSON text: metrics may hold NaN (e.g. an undefined ATE), and NaN != NaN.
+            same = json.dumps(previous.get("stamp"), sort_keys=True) == json.dumps(stamp, sort_keys=True)
+            if same and all(Path(f).exists() for f in previous["files"].values()):
                 return previous["files"]
         except (ValueError, KeyError, TypeError):
             pass

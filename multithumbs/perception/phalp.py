@@ -40,6 +40,7 @@ from scipy.spatial.transform import Rotation
 
 from multithumbs.appearance import DESCRIPTOR_SIZE
 from multithumbs.errors import InputError
+from multithumbs.geometry import reexpress_for_intrinsics
 from multithumbs.io import publish
 from multithumbs.perception.camera import (
     HMR2_CROP_SIZE,
@@ -350,7 +351,8 @@ def mask_box(mask: np.ndarray) -> np.ndarray:
 
 def export_phalp(path: str | Path, tracks: Sequence[PersonTracks], shots: Shots,
                  boxes: Sequence[np.ndarray] | None = None, uv_appearance: Sequence[np.ndarray] | None = None,
-                 video_name: str = "video", overwrite: bool = False) -> Path:
+                 video_name: str = "video", overwrite: bool = False,
+                 rest_pelvis: Sequence[np.ndarray] | None = None) -> Path:
     """Write per-shot tracks as a PHALP results file (the structure :func:`import_phalp` reads).
 
     Every video frame gets a key ``_DEMO/<video_name>/img/<frame:06d>.jpg``; ``shot`` flags the first frame
@@ -360,6 +362,12 @@ def export_phalp(path: str | Path, tracks: Sequence[PersonTracks], shots: Shots,
     written; ``appe`` only when ``uv_appearance`` is given. ``2d_joints`` carries the SMPL joints HMR2's
     OpenPose joints are and zeros for the others. Arrays are float32, as PHALP stores them. Atomic write;
     an existing file is replaced only with ``overwrite``.
+
+    ``camera`` is each track's translation re-expressed for HMR2's camera (:func:`hmr2_intrinsics`, the
+    camera :func:`import_phalp` gives back), as 4DHumans reports it: the same pixel, the depth scaled by the
+    focal-length ratio (:func:`multithumbs.geometry.reexpress_for_intrinsics`). The point converted is the
+    pelvis when ``rest_pelvis`` gives each shot's ``(P, 3)`` rest pelvis (SMPL joint 0 of each track's
+    betas; the method converts the same point back), else the SMPL origin.
     """
     import joblib
     from pycocotools import mask as mask_utils
@@ -386,6 +394,8 @@ def export_phalp(path: str | Path, tracks: Sequence[PersonTracks], shots: Shots,
         if tr.num_frames != b - a or tr.start_frame != a:
             raise InputError(f"shot {k}: tracks cover frames {tr.start_frame}..{tr.start_frame + tr.num_frames - 1}"
                              f", the shot is {a}..{b - 1}")
+        rest = np.zeros((tr.num_people, 1, 3)) if rest_pelvis is None else np.asarray(rest_pelvis[k])[:, None]
+        camera = reexpress_for_intrinsics(tr.transl + rest, tr.K, hmr2_intrinsics(tr.image_size)) - rest
         orient = Rotation.from_rotvec(tr.global_orient.reshape(-1, 3)).as_matrix().reshape(*tr.valid.shape, 1, 3, 3)
         pose = Rotation.from_rotvec(tr.body_pose.reshape(-1, 3)).as_matrix().reshape(*tr.valid.shape, 23, 3, 3)
         for i, j in zip(*np.nonzero(tr.valid)):
@@ -418,7 +428,7 @@ def export_phalp(path: str | Path, tracks: Sequence[PersonTracks], shots: Shots,
             frame["smpl"].append({"global_orient": orient[i, j].astype(np.float32),
                                   "body_pose": pose[i, j].astype(np.float32),
                                   "betas": tr.betas[i].astype(np.float32)})
-            frame["camera"].append(tr.transl[i, j].astype(np.float32))
+            frame["camera"].append(camera[i, j].astype(np.float32))
             frame["2d_joints"].append(flat.astype(np.float32))
             frame["mask"].append(rles)
             if uv_appearance is not None:

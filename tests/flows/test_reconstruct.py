@@ -1,7 +1,6 @@
 """A real end-to-end flow: the synthetic demo through Prefect (ephemeral API), then again from the store."""
 
 import json
-import time
 
 import pytest
 
@@ -15,9 +14,7 @@ def test_flow_reconstructs_then_serves_everything_from_the_store(prefect, tmp_pa
 
     out, store_url = tmp_path / "out", str(tmp_path / "store")
     out.mkdir()
-    start = time.perf_counter()
     metrics = reconstruct_synthetic(config_to_json(TINY), str(out), store_url)
-    first = time.perf_counter() - start
     for name in ("video.mp4", "ground_truth.npz", "contact_sheet.png", "result.npz", "metrics.json", "overlay.mp4",
                  "trajectory.png", "trajectory.svg", "scene.glb", "scene.rrd", "cameras.npz", "colmap/images.txt",
                  "report.md"):
@@ -33,13 +30,11 @@ def test_flow_reconstructs_then_serves_everything_from_the_store(prefect, tmp_pa
     created = {k: store.record(k)["created"] for k in store.keys()}
     assert {store.record(k)["stage"] for k in created} == {"simulate_inputs", "align", "propagate", "reid", "post"}
 
-    start = time.perf_counter()
     again = reconstruct_synthetic(config_to_json(TINY), str(out), store_url)
-    second = time.perf_counter() - start
-    # Nothing was computed again: the same artifacts, untouched, and the same numbers.
+    # Nothing was computed again: the same artifacts, untouched, and the same numbers (the time it saves
+    # is measured by benchmarks/second_run.py, not by a timed test).
     assert {k: store.record(k)["created"] for k in store.keys()} == created
     assert again["w_mpjpe"] == pytest.approx(metrics["w_mpjpe"])
-    assert second < first / 10, (first, second)
 
 
 def test_changing_a_reid_parameter_recomputes_reid_and_what_follows_only(prefect, tmp_path):

@@ -22,7 +22,9 @@ def scene_files(tmp_path_factory):
     body = load_body_model()
     video = synthesize(SCENE, body)
     write_synthetic(out, video)
-    export_phalp(out / "perception.pkl", simulate_perception(video, body), video.truth.world.shots())
+    tracks = simulate_perception(video, body)
+    export_phalp(out / "perception.pkl", tracks, video.truth.world.shots(),
+                 rest_pelvis=[body.rest_joints(tr.betas)[:, 0].double().numpy() for tr in tracks])
     K = video.truth.world.K[0]
     return out, [K[0, 0], K[1, 1], K[0, 2], K[1, 2]]
 
