@@ -84,7 +84,7 @@ def _scene(name: str) -> tuple:
     with tempfile.TemporaryDirectory() as tmp:
         path = write_video(Path(tmp) / "video.mp4", video.frames, config.fps)
         pkl = export_phalp(Path(tmp) / "results.pkl", simulated, shots,
-                           rest_pelvis=[body.rest_joints(tr.betas)[:, 0].double().numpy() for tr in simulated])
+                           rest_pelvis=[body.rest_pelvis(tr.betas) for tr in simulated])
         imported = load_perception(f"phalp:{pkl}", path, shots, trust=True)
     return (name, _links(imported, video, shots, body, config.dressed_alike),
             _links(simulated, video, shots, body, config.dressed_alike))

@@ -73,8 +73,7 @@ def synth(
     # SIMULATED perception in 4DHumans/PHALP's format: `multithumbs run video.mp4 --perception phalp:...`.
     simulated = simulate_perception(video, body)
     paths["perception"] = export_phalp(out_dir / "perception.pkl", simulated, truth.world.shots(), overwrite=True,
-                                       rest_pelvis=[body.rest_joints(tr.betas)[:, 0].double().numpy()
-                                                    for tr in simulated])
+                                       rest_pelvis=[body.rest_pelvis(tr.betas) for tr in simulated])
     console.print(f"[bold]{config.name or 'scene'}[/]: {config.num_people} people, {config.num_shots} shots, "
                   f"{config.num_frames} frames, cuts at {truth.world.cut_frames.tolist()}, "
                   f"{int(truth.visible.sum())} visible person-frames")

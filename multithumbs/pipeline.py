@@ -94,12 +94,6 @@ def variant_config(variant: str, base: MethodConfig = MethodConfig()) -> MethodC
 # 1. Boundary people
 
 
-def _pelvis_rest(body, betas: np.ndarray) -> np.ndarray:
-    """``(..., 3)`` rest pelvis joint (SMPL's rotation centre) of shapes ``(..., 10)``."""
-    with torch.no_grad():
-        return body.rest_joints(betas).double().numpy()[..., 0, :]
-
-
 def boundary_people(before: PersonTracks, after: PersonTracks, body, window: int = 3,
                     K: np.ndarray | None = None) -> BoundaryPeople:
     """The people around a cut — the last frame of ``before``, the first of ``after`` — posed once.
@@ -234,7 +228,7 @@ def propagate(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequen
     orients, transls, pelvises = [], [], []
     for k in range(n_shots):
         tr = tracks[k]
-        pelvis_rest = _pelvis_rest(body, tr.betas)                                  # (P, 3)
+        pelvis_rest = body.rest_pelvis(tr.betas)                                # (P, 3)
         pelvis_cam = reexpress_for_intrinsics(tr.transl + pelvis_rest[:, None], tr.K, trajectories[k].K)
         corrections = {i: [] for i in range(tr.num_people)}
         if not independent:

@@ -214,6 +214,14 @@ class BodyModel:
         shaped = self.smpl.forward_shape(betas=flat).v_shaped
         return vertices2joints(self.smpl.J_regressor, shaped).reshape(*shape.shape[:-1], NUM_JOINTS, 3)
 
+    def rest_pelvis(self, betas) -> np.ndarray:
+        """``(..., 3)`` float64 rest pelvis (SMPL joint 0, the root's rotation centre) of ``betas (..., 10)``.
+
+        A body's camera-frame pelvis is its SMPL translation plus this point.
+        """
+        with torch.no_grad():
+            return self.rest_joints(betas)[..., 0, :].double().numpy()
+
     def _tensor(self, name: str, value, trailing: tuple[int, ...] | None) -> torch.Tensor:
         """``value`` as a tensor of the model's dtype with trailing dimensions ``trailing`` (checked)."""
         if value is None:

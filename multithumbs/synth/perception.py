@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import torch
 from scipy.ndimage import gaussian_filter1d
 from scipy.spatial.transform import Rotation
 
@@ -92,8 +91,7 @@ def simulate_perception(video: SyntheticVideo, body: BodyModel, noise: Perceptio
     rng = np.random.default_rng([video.scene.config.seed, seed, 7])
     h, w = world.image_size
     edges = [0, *world.cut_frames.tolist(), world.num_frames]
-    with torch.no_grad():
-        pelvis_rest = body.rest_joints(world.betas).double().numpy()[:, 0]  # (P, 3) rotation centre of SMPL
+    pelvis_rest = body.rest_pelvis(world.betas)  # (P, 3) rotation centre of SMPL
     tracks = []
     for shot, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
         frames = np.arange(a, b)
@@ -134,8 +132,7 @@ def _shot_tracks(video: SyntheticVideo, body: BodyModel, noise: PerceptionNoise,
     body_pose = _compose(bias, body_pose)
     orient_c = _compose(_rotation_noise(rng, orient_c.shape[:-1], noise.orient_jitter_deg), orient_c)
     betas = world.betas[people] + rng.normal(0, noise.betas_sigma, (p_count, 10))
-    with torch.no_grad():
-        noisy_pelvis_rest = body.rest_joints(betas).double().numpy()[:, 0]
+    noisy_pelvis_rest = body.rest_pelvis(betas)
     transl_c = pelvis_c - noisy_pelvis_rest[:, None]
 
     # 2D keypoints: true projections with noise; occluded joints get large noise and low confidence.

@@ -24,7 +24,7 @@ def scene_files(tmp_path_factory):
     write_synthetic(out, video)
     tracks = simulate_perception(video, body)
     export_phalp(out / "perception.pkl", tracks, video.truth.world.shots(),
-                 rest_pelvis=[body.rest_joints(tr.betas)[:, 0].double().numpy() for tr in tracks])
+                 rest_pelvis=[body.rest_pelvis(tr.betas) for tr in tracks])
     K = video.truth.world.K[0]
     return out, [K[0, 0], K[1, 1], K[0, 2], K[1, 2]]
 
