@@ -16,7 +16,7 @@ import torch
 
 from multithumbs.body.model import BodyModel
 from multithumbs.errors import InputError
-from multithumbs.geometry import intrinsics_from_fov, look_at, project_points, world_to_camera
+from multithumbs.geometry import camera_centre, intrinsics_from_fov, look_at, project_points, world_to_camera
 from multithumbs.synth.motion import (MotionConfig, PersonMotion, motion_to_smpl, simulate_walk, straight_walk,
                                       walk_abreast)
 from multithumbs.synth.render import MeshInstance, Render, render_view
@@ -279,7 +279,7 @@ def build_scene(config: SceneConfig) -> Scene:
     rng = np.random.default_rng([config.seed, 0])
     cuts = scene_cuts(config)
     cameras = _make_cameras(config, rng)
-    centres = -np.einsum("ctji,ctj->cti", cameras.R, cameras.t)
+    centres = camera_centre(cameras.R, cameras.t)
     room = make_room(config.seed, *config.room_size)
     room = _clear_around(room, centres.reshape(-1, 3))
 
@@ -327,7 +327,7 @@ def _frame_cameras(config: SceneConfig, cameras: CameraRig, cuts: np.ndarray) ->
     """``(T, 2)`` floor position of the camera filming each frame."""
     frames = np.arange(config.num_frames)
     shot = np.searchsorted(cuts, frames, side="right")
-    return -np.einsum("tji,tj->ti", cameras.R[shot, frames], cameras.t[shot, frames])[:, :2]
+    return camera_centre(cameras.R[shot, frames], cameras.t[shot, frames])[:, :2]
 
 
 def _hidden_fraction(pos_a: np.ndarray, pos_b: np.ndarray, camera: np.ndarray, half_width: float = 0.25
@@ -368,10 +368,10 @@ def _abreast_motions(config: SceneConfig, cuts: np.ndarray, cameras: CameraRig, 
     rng = np.random.default_rng([config.seed, 2])
     cut = int(cuts[0]) if cuts.size else config.num_frames // 2
     views = [(0, max(cut - 1, 0))] + ([(1, cut)] if config.num_shots > 1 else [])
-    centres = np.stack([-cameras.R[k, f].T @ cameras.t[k, f] for k, f in views])[:, :2]
+    frame_camera = _frame_cameras(config, cameras, cuts)
+    centres = frame_camera[[f for _, f in views]]
     forward = sum(cameras.R[k, f, 2, :2] for k, f in views)  # camera +z (viewing axis) on the floor
     forward = forward / np.linalg.norm(forward)
-    frame_camera = _frame_cameras(config, cameras, cuts)
     a, b = config.abreast_pair
     partner = passed = None
     if config.crossing_pair is not None and set(config.crossing_pair) & {a, b}:
