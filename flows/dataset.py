@@ -49,7 +49,7 @@ def _check_items(items: list[dict[str, Any]]) -> list[str]:
 @flow(name="reconstruct-dataset-run")
 def _dataset_run(items: list[dict[str, Any]], out_root: str, store_url: str, variant: str,
                  method: dict[str, Any] | None) -> list[dict[str, Any]]:
-    names = all_names = _check_items(items)
+    names = _check_items(items)
     root = Path(out_root)
     progress = create_progress_artifact(progress=0.0, description=f"{len(items)} videos: inputs, method, evaluation")
     rows = {}
@@ -61,14 +61,20 @@ def _dataset_run(items: list[dict[str, Any]], out_root: str, store_url: str, var
         rows[name] = {"video": name, **{k: (summary["metrics"] or {}).get(k) for k in METRIC_ORDER},
                       "backends": summary["backends"]}
         update_progress_artifact(progress, 50.0 * done / len(items))
-    items = [item for item in items if "scene" in item]
-    names = [name for name in names if name not in rows]
-    if not items:
-        table = [rows[name] for name in all_names]
-        create_table_artifact(key="dataset-results", table=table, description=f"{len(table)} videos ({variant})")
-        return table
+    scenes = [(name, item) for name, item in zip(names, items) if "scene" in item]
+    if scenes:
+        rows.update(_synthetic_rows(scenes, root, store_url, variant, method, progress))
+    table = [rows[name] for name in names]
+    create_table_artifact(key="dataset-results", table=table, description=f"{len(table)} videos ({variant})")
+    return table
+
+
+def _synthetic_rows(scenes: list[tuple[str, dict[str, Any]]], root: Path, store_url: str, variant: str,
+                    method: dict[str, Any] | None, progress) -> dict[str, dict[str, Any]]:
+    """Synthetic items (SIMULATED inputs): every stage as tasks in parallel across videos; rows by name."""
+    names = [name for name, _ in scenes]
     input_futures = []
-    for name, item in zip(names, items):
+    for name, item in scenes:
         (root / name).mkdir(parents=True, exist_ok=True)
         input_futures.append(simulate_inputs.submit(store_url, item["scene"], str(root / name)))
     refs = [f.result() for f in input_futures]
@@ -83,13 +89,12 @@ def _dataset_run(items: list[dict[str, Any]], out_root: str, store_url: str, var
                                            space_refs(r), r["truth"], m, {"backends": SIMULATED_BACKENDS,
                                                                           "variant": variant})
                       for name, out, r, m in zip(names, outs, refs, metrics)]
+    rows = {}
     for name, out, m, future in zip(names, outs, metrics, output_futures):
         publish_report(name, variant, future.result(), m)
         rows[name] = {"video": name, **{k: m.get(k) for k in METRIC_ORDER}, "result": out["result"].key}
     update_progress_artifact(progress, 100.0)
-    table = [rows[name] for name in all_names]
-    create_table_artifact(key="dataset-results", table=table, description=f"{len(table)} videos ({variant})")
-    return table
+    return rows
 
 
 @flow(name="reconstruct-dataset")
