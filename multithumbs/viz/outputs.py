@@ -14,7 +14,10 @@ Layout of ``out_dir`` (kinds in brackets; pass ``include`` to write a subset):
 
 Every file is written to a temporary name and renamed into place. Existing files are replaced only if
 the folder's manifest says this function wrote them, or with ``overwrite=True``; the check runs before
-anything is written, so a refusal leaves the folder untouched.
+anything is written, so a refusal leaves the folder untouched. Once the check passes, the manifest is
+written first (``"complete": false``) listing every planned file, and rewritten at the end with what was
+written: a run that fails part-way can be retried (a Prefect task retry, or the same command again)
+and replaces its own partial output instead of refusing it.
 """
 
 from __future__ import annotations
@@ -159,6 +162,9 @@ def write_video_outputs(out_dir: str | Path, result: WorldResult, video_path: st
     include = tuple(include)
     plan = planned_files(result, include)
     out = check_output_dir(out_dir, plan, overwrite)
+    earlier = _read_manifest(out) or set()
+    # Claim the planned files before writing any (module docstring: retries after a partial write).
+    _write_manifest(out, video_path, earlier | set(plan.values()), {}, complete=False)
     if body is None:
         from multithumbs.body.model import load_body_model
 
@@ -243,8 +249,14 @@ def write_video_outputs(out_dir: str | Path, result: WorldResult, video_path: st
                                       title=title or f"Multi-THuMBS: {video_path.name}", video=video_path.name,
                                       has_truth=truth is not None, base_dir=out)
         written["report"] = write_text_atomic(out / plan["report"], text)
-    manifest = {"format": MANIFEST_FORMAT, "video": str(video_path),
-                "files": sorted({*(_read_manifest(out) or set()), *(plan[k] for k in written), MANIFEST_NAME}),
-                "timings": timings}
-    written["manifest"] = write_text_atomic(out / MANIFEST_NAME, json.dumps(manifest, indent=1, sort_keys=True))
+    # Earlier outputs stay listed while they exist; claims of a failed run that never wrote them lapse.
+    files = {f for f in earlier if (out / f).exists()} | {plan[k] for k in written}
+    written["manifest"] = _write_manifest(out, video_path, files, timings, complete=True)
     return written
+
+
+def _write_manifest(out: Path, video_path: Path, files: set[str], timings: Mapping[str, float],
+                    complete: bool) -> Path:
+    manifest = {"format": MANIFEST_FORMAT, "video": str(video_path), "files": sorted(files | {MANIFEST_NAME}),
+                "timings": dict(timings), "complete": complete}
+    return write_text_atomic(out / MANIFEST_NAME, json.dumps(manifest, indent=1, sort_keys=True))

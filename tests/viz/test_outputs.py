@@ -74,6 +74,28 @@ def test_rewrites_own_files_but_refuses_others(exported, small_scene, body, tmp_
     assert np.load(written["cameras"])["R"].shape == small_scene.world.R.shape
 
 
+def test_retry_after_a_failure_part_way_replaces_its_own_files(small_scene, body, tmp_path, monkeypatch):
+    import multithumbs.export.cameras as cameras
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(cameras, "write_colmap_text", broken)
+    with pytest.raises(RuntimeError, match="disk full"):
+        write_video_outputs(tmp_path, small_scene.world, small_scene.video_path, body=body,
+                            include=["cameras", "colmap"])
+    claimed = json.loads((tmp_path / "outputs.json").read_text())
+    assert claimed["complete"] is False and "colmap/images.txt" in claimed["files"]
+    assert (tmp_path / "cameras.npz").exists() and not (tmp_path / "colmap").exists()
+    monkeypatch.undo()
+    written = write_video_outputs(tmp_path, small_scene.world, small_scene.video_path, body=body,
+                                  include=["cameras", "colmap"])  # no overwrite needed: its own files
+    manifest = json.loads(written["manifest"].read_text())
+    assert manifest["complete"] is True
+    assert set(manifest["files"]) == {"outputs.json", "cameras.npz", "colmap/cameras.txt", "colmap/images.txt",
+                                      "colmap/points3D.txt"}
+
+
 def test_bad_inputs(small_scene, body, tmp_path):
     world = small_scene.world
     with pytest.raises(InputError, match="no such video"):
