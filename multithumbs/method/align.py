@@ -8,6 +8,9 @@ are placed in the cut's shared space:
 3. stage 2: roots (pelvis position Γ, orientation Φ) are refined under the 2D reprojection loss;
 4. stage 3: roots and both boundary cameras are refined under 2D + silhouette + depth losses.
 
+Before the stages, with camera refinement on, the second boundary camera is registered to the first by
+the two frames' static scenes (:mod:`multithumbs.method.views`; below).
+
 All people and both frames are one batched tensor program. Each body's pose and shape stay fixed
 during alignment, so it is posed once (in its own pelvis-centred frame) before the loop.
 
@@ -17,6 +20,17 @@ mask, the depth loss is the squared 3D distance (m²) between a camera-facing ve
 the scene point at its pixel. Each is a mean, so the weights do not depend on vertex or joint counts.
 Silhouette distances treat pixels covered by other people as unknown (distance 0), so a limb hidden
 behind someone else is not pulled out from behind them.
+
+Cameras and their points: a point observed in one boundary frame only was unprojected from that frame's
+depth with that frame's camera (VGGT's depth head and our default adapter, the two-view backend's dense
+depth, the simulation), so a camera error carries its points with it, and the people's losses, all
+relative to that camera, cannot see it: the paper's stage 3 camera refinement then has nothing to fix
+(standard suite: no_cam 153.6 mm against full 154.3 before the registration). What does see it is the
+disagreement of the two frames' static scenes, which :func:`multithumbs.method.views.register_views`
+removes before the stages (full 154.3 -> 121.4 mm; docs/RESULTS.md). In stage 3 such points move with
+their camera (``points_follow_cameras``), so refining a camera cannot tear a frame's people from its
+scene, and a weak prior on the cameras fixes the gauge this leaves. Points observed in both frames
+(triangulated) stay where they are, as the paper's objective has them.
 """
 
 from __future__ import annotations
@@ -32,6 +46,7 @@ from scipy.optimize import least_squares
 from multithumbs.geometry import (axis_angle_to_matrix, camera_centre, matrix_to_axis_angle, project,
                                   vertex_normals)
 from multithumbs.method.scale import depth_ratio_scale, mesh_to_points_scale
+from multithumbs.method.views import register_views
 from multithumbs.types import SharedSpace
 
 
@@ -68,6 +83,18 @@ class AlignConfig:
             estimators get wrong by a per-track factor (False: the estimator's depth, as before).
         threads: torch intra-op threads of the alignment, its setup and optimisation loop (0: leave
             torch's setting); see :func:`torch_threads`.
+        points_follow_cameras: points observed in one boundary frame only move with that frame's camera
+            in stage 3 (module docstring); False for point maps predicted in the world directly (VGGT's
+            point head), which stay fixed while the cameras move, as in the paper.
+        register_views: before the stages, correct the second boundary camera so both frames' static
+            scenes agree (:func:`multithumbs.method.views.register_views`); part of the camera
+            refinement, so off with ``refine_cameras=False``.
+        view_samples: background points sampled per frame for that registration.
+        view_robust_scale: its Cauchy scale and occlusion margin (m).
+        view_smoothing_px: smoothing of the depth maps it compares with (pixels).
+        w_camera_prior: weight of ``‖ω‖² + ‖C − C₀‖²`` (rad², m²) keeping stage 3's cameras near their
+            registered poses: with points that follow their cameras, the people's losses leave a gauge
+            (camera, its points and its people moving together) that this fixes.
     """
 
     iterations: tuple[int, int, int] = (500, 500, 1500)
@@ -86,6 +113,12 @@ class AlignConfig:
     scale_method: str = "depth_ratio"
     fit_scale_to_keypoints: bool = True
     threads: int = 1
+    points_follow_cameras: bool = True
+    register_views: bool = True
+    view_samples: int = 2000
+    view_robust_scale: float = 0.3
+    view_smoothing_px: float = 3.0
+    w_camera_prior: float = 1e-3
 
 
 @dataclass(frozen=True)
@@ -159,9 +192,20 @@ def point_maps(space: SharedSpace, max_gap: float = 2.5) -> tuple[np.ndarray, np
     Holes up to ``max_gap`` pixels from an observed pixel take the nearest observed point
     (``scipy.ndimage.distance_transform_edt``), so strided or sparse point maps still cover the image.
     """
+    maps, valid, _, _ = point_maps_with_sources(space, max_gap)
+    return maps, valid
+
+
+def point_maps_with_sources(space: SharedSpace, max_gap: float = 2.5
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`point_maps`, ``(2, H, W)`` bool: the pixel's point was observed in that frame only
+    (unprojected from its depth, so it moves with its camera; module docstring), and ``(2, H, W)`` bool:
+    the pixel holds a point of its own (not a filled hole)."""
     h, w = space.image_size
     maps = np.zeros((2, h, w, 3))
     valid = np.zeros((2, h, w), bool)
+    single = np.zeros((2, h, w), bool)
+    own = np.zeros((2, h, w), bool)
     for k in range(2):
         sel = space.observed[k]
         uv = np.round(space.pixels[k, sel]).astype(int)
@@ -169,12 +213,15 @@ def point_maps(space: SharedSpace, max_gap: float = 2.5) -> tuple[np.ndarray, np
         uv, pts = uv[inside], space.points[sel][inside]
         maps[k, uv[:, 1], uv[:, 0]] = pts
         valid[k, uv[:, 1], uv[:, 0]] = True
+        single[k, uv[:, 1], uv[:, 0]] = ~space.observed[1 - k, sel][inside]
+        own[k] = valid[k]
         if valid[k].any():
             dist, (iy, ix) = ndimage.distance_transform_edt(~valid[k], return_indices=True)
             fill = (dist <= max_gap) & ~valid[k]
             maps[k][fill] = maps[k][iy[fill], ix[fill]]
+            single[k][fill] = single[k][iy[fill], ix[fill]]
             valid[k] |= fill
-    return maps, valid
+    return maps, valid, single & valid, own
 
 
 def _root_pixel(keypoints: np.ndarray, min_conf: float) -> np.ndarray | None:
@@ -301,13 +348,24 @@ def align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignConf
 
 
 def _align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignConfig, skip: bool) -> AlignedBoundary:
-    maps, valid = point_maps(space)
+    maps, valid, single_view, own = point_maps_with_sources(space)
     fitted = keypoint_fitted_pelvis(people, space.K, config.keypoint_confidence) if config.fit_scale_to_keypoints \
         else None
     scale = estimate_space_scale(people, space, maps, valid, config.min_person_points, config.scale_method, fitted)
     s = scale if np.isfinite(scale) and scale > 0 else 1.0
     maps = maps * s
     R0, t0 = space.R.astype(np.float64), space.t.astype(np.float64) * s
+    follow = single_view & valid if config.points_follow_cameras else np.zeros_like(valid)
+    registration = None
+    if not skip and config.refine_cameras and config.register_views and follow.any():
+        point_cam = np.einsum("kij,khwj->khwi", R0, maps) + t0[:, None, None]
+        registration = register_views(point_cam, follow & ~people.masks.any(axis=1), space.K, R0, t0,
+                                      config.view_samples, config.view_robust_scale, config.view_smoothing_px,
+                                      observed=own)
+        if registration.registered:  # frame 1's points move with its camera
+            moved = (point_cam[1] - registration.t[1]) @ registration.R[1]
+            maps[1] = np.where(follow[1][..., None], moved, maps[1])
+            R0, t0 = registration.R, registration.t
     orient, pelvis = _camera_frame_roots(people, R0, t0)
     common = dict(cut_frame=space.cut_frame, present=people.present, track_index=people.track_index,
                   track_frame=people.track_frame, scale=scale,
@@ -316,7 +374,7 @@ def _align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignCon
         return AlignedBoundary(R=R0, t=t0, orient=orient, pelvis=pelvis, method="no_align", **common)
     if config.staged:
         pelvis = _stage1_roots(people, maps, valid, pelvis, config.keypoint_confidence)
-    problem = _Problem(people, space, maps, valid, config)
+    problem = _Problem(people, space, maps, valid, config, single_view=single_view, cameras=(R0, t0))
     state = problem.state(R0, t0, orient, pelvis)
     losses = []
     if config.staged:
@@ -325,6 +383,7 @@ def _align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignCon
     else:
         losses += problem.run(state, config.iterations[1] + config.iterations[2], stage=3)
     R, t, orient, pelvis = problem.export(state)
+    common["point_map"] = problem.moved_point_maps(R, t)
     return AlignedBoundary(R=R, t=t, orient=orient, pelvis=pelvis, losses=np.asarray(losses),
                            method="three_stage" if config.staged else "joint", **common)
 
@@ -410,7 +469,10 @@ class _Problem:
     """
 
     def __init__(self, people: BoundaryPeople, space: SharedSpace, maps: np.ndarray, valid: np.ndarray,
-                 config: AlignConfig):
+                 config: AlignConfig, single_view: np.ndarray | None = None,
+                 cameras: tuple[np.ndarray, np.ndarray] | None = None):
+        """``single_view`` ``(2, H, W)``: pixels whose point moves with its camera (None: none does);
+        ``cameras``: the cameras ``(R, t)`` the maps were made with (default: the space's)."""
         self.config = config
         h, w = space.image_size
         norm = 0.5 * max(h, w)
@@ -460,12 +522,24 @@ class _Problem:
         self.person_offset = (torch.arange(rows) * (h * w))[:, None]
         self.frame_offset = (torch.arange(2).repeat_interleave(p_count) * (h * w))[:, None]
         self.point_map = as_t(maps).reshape(-1, 3)
+        # Points that move with their camera: their camera-frame coordinates under the maps' cameras are
+        # what stays fixed (module docstring).
+        R_maps, t_maps = (space.R, space.t) if cameras is None else cameras
+        follow = np.zeros((2, h, w), bool) if single_view is None or not config.points_follow_cameras \
+            else np.asarray(single_view, bool) & valid
+        self.maps_np, self.follow_np = maps, follow
+        self.point_cam_np = np.einsum("kij,khwj->khwi", np.asarray(R_maps, float), maps) + \
+            np.asarray(t_maps, float)[:, None, None]
+        self.follow = torch.as_tensor(follow.reshape(-1))
+        self.any_follow = bool(follow.any())
+        self.point_cam = as_t(self.point_cam_np).reshape(-1, 3)
 
     def state(self, R, t, orient, pelvis) -> dict[str, torch.Tensor]:
         as_t = lambda a: torch.as_tensor(np.asarray(a), dtype=DTYPE)
         R = as_t(R)
         camera = torch.cat([torch.zeros(2, 3, dtype=DTYPE), camera_centre(R, as_t(t))], dim=-1)
-        return {"R0": R, "camera": camera.requires_grad_(True),                 # (2, 6): rotation update, centre
+        return {"R0": R, "C0": camera[:, 3:].clone(),
+                "camera": camera.requires_grad_(True),                              # (2, 6): rotation update, centre
                 "roots": torch.cat([as_t(orient), as_t(pelvis)], dim=-1).requires_grad_(True)}  # (2, P, 6)
 
     def cameras(self, state) -> tuple[torch.Tensor, torch.Tensor]:
@@ -515,16 +589,32 @@ class _Problem:
             height, width = self.size
             pixel = pixels[:, 1].clamp(0, height - 1) * width + pixels[:, 0].clamp(0, width - 1)  # (2P, V)
             use = self.depth_usable[self.person_offset + pixel] & (normal_z[:, 0] < 0)
-            target = self.point_map.index_select(0, (self.frame_offset + pixel).flatten())
-            target = target.reshape(*pixel.shape, 3).transpose(1, 2)
+            flat = (self.frame_offset + pixel).flatten()
+            target = self.point_map.index_select(0, flat).reshape(*pixel.shape, 3).transpose(1, 2)
             robust = cfg.depth_robust_scale > 0
             sigma2 = cfg.depth_robust_scale ** 2
             use = use.to(DTYPE)
             depth_weight = use * (cfg.w_depth * (sigma2 if robust else 1.0) / use.sum().clamp(min=1))
-        d2 = (verts - target).square().sum(1)
+        diff = verts - target
+        if self.any_follow:  # those points are fixed in their camera's frame: compare there
+            with torch.no_grad():
+                target_cam = self.point_cam.index_select(0, flat).reshape(*pixel.shape, 3).transpose(1, 2)
+                follow = self.follow[flat].reshape(pixel.shape).unsqueeze(1)
+            rows_R, rows_t = R.repeat_interleave(self.p_count, dim=0), t.repeat_interleave(self.p_count, dim=0)
+            diff = torch.where(follow, torch.baddbmm(rows_t.unsqueeze(-1), rows_R, verts) - target_cam, diff)
+        d2 = diff.square().sum(1)
         if robust:  # Geman-McClure, in m²: σ² d² / (d² + σ²) (σ² is in the weight), flat for outliers
             d2 = d2 / (d2 + sigma2)
-        return loss2d + loss_sil + (d2 * depth_weight).sum()
+        loss = loss2d + loss_sil + (d2 * depth_weight).sum()
+        if fixed_cameras is None:
+            loss = loss + cfg.w_camera_prior * (
+                state["camera"][:, :3].square().sum() + (state["camera"][:, 3:] - state["C0"]).square().sum())
+        return loss
+
+    def moved_point_maps(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """``(2, H, W, 3)`` the point maps under cameras ``(R, t)``: points that follow their camera moved."""
+        moved = np.einsum("kji,khwj->khwi", R, self.point_cam_np - t[:, None, None])   # R^T (x_cam - t)
+        return np.where(self.follow_np[..., None], moved, self.maps_np)
 
     def run(self, state, iterations: int, stage: int) -> list[float]:
         if iterations <= 0:

@@ -125,7 +125,8 @@ def test_rotation_matches_roma_at_every_angle():
                                torch.autograd.grad((theirs * weights).sum(), rotvec)[0], atol=1e-12, rtol=0)
 
 
-def _reference_loss(people, space, maps, valid, config, R0, cam_rot, cam_centre, orient, pelvis, stage):
+def _reference_loss(people, space, maps, valid, config, R0, cam_rot, cam_centre, orient, pelvis, stage,
+                    follow=None, C0=None):
     """The alignment objective written plainly (module docstring), as the loop computed it before it was
     restructured for speed: :class:`_Problem` must give the same value and gradients."""
     import torch
@@ -168,24 +169,33 @@ def _reference_loss(people, space, maps, valid, config, R0, cam_rot, cam_centre,
     person = torch.arange(ui.shape[1])[None, :, None].expand_as(ui)
     use = torch.as_tensor(masks)[frame, person, vi, ui] & torch.as_tensor(valid)[frame, vi, ui] & facing
     use &= present[..., None]
-    d2 = (verts - as_t(maps)[frame, vi, ui]).pow(2).sum(-1)
+    target = as_t(maps)[frame, vi, ui]
+    if follow is not None:  # points that follow their camera: fixed in the frame of the maps' camera
+        point_cam = as_t(maps) @ as_t(space.R).transpose(-1, -2)[:, None] + as_t(space.t)[:, None, None]
+        moved = (point_cam[frame, vi, ui] - t[:, None, None]) @ R[:, None]        # R^T (x_cam - t)
+        target = torch.where(torch.as_tensor(follow)[frame, vi, ui][..., None], moved, target)
+    d2 = (verts - target).pow(2).sum(-1)
     if config.depth_robust_scale > 0:
         sigma2 = config.depth_robust_scale ** 2
         d2 = sigma2 * d2 / (d2 + sigma2)
     loss_depth = (d2 * use).sum() / use.sum().clamp(min=1)
-    return config.w2d_stage3 * loss2d + config.w_sil * loss_sil + config.w_depth * loss_depth
+    loss = config.w2d_stage3 * loss2d + config.w_sil * loss_sil + config.w_depth * loss_depth
+    if C0 is not None:  # the cameras are optimised: their prior
+        loss = loss + config.w_camera_prior * (cam_rot.pow(2).sum() + (cam_centre - C0).pow(2).sum())
+    return loss
 
 
 def test_the_optimised_objective_is_the_documented_one(tiny, body):
     import torch
 
-    from multithumbs.method.align import _camera_frame_roots, _Problem
+    from multithumbs.method.align import _camera_frame_roots, _Problem, point_maps_with_sources
     people = boundary_people(tiny.tracks[0], tiny.tracks[1], body)
     space = tiny.spaces[0]
-    maps, valid = point_maps(space)
+    maps, valid, single_view, _ = point_maps_with_sources(space)
     generator = torch.Generator().manual_seed(5)
-    for config in (AlignConfig(), AlignConfig(depth_robust_scale=0.0, max_vertices=150)):
-        problem = _Problem(people, space, maps, valid, config)
+    for config, follow in ((AlignConfig(), None), (AlignConfig(depth_robust_scale=0.0, max_vertices=150), None),
+                           (AlignConfig(), single_view)):
+        problem = _Problem(people, space, maps, valid, config, single_view=follow)
         orient, pelvis = _camera_frame_roots(people, space.R, space.t)
         state = problem.state(space.R, space.t, orient, pelvis)
         with torch.no_grad():  # away from the start, where nothing is special
@@ -196,7 +206,8 @@ def test_the_optimised_objective_is_the_documented_one(tiny, body):
                 roots, camera = state["roots"], state["camera"]
                 ours = problem.loss(state, stage, None if fixed is None else tuple(x.detach() for x in fixed))
                 reference = _reference_loss(people, space, maps, valid, config, state["R0"], camera[:, :3],
-                                            camera[:, 3:], roots[..., :3], roots[..., 3:], stage)
+                                            camera[:, 3:], roots[..., :3], roots[..., 3:], stage, follow,
+                                            state["C0"] if fixed is None and stage == 3 else None)
                 assert float(reference.detach()) > 0
                 torch.testing.assert_close(ours, reference, atol=0, rtol=1e-10)
                 grad_ours = torch.autograd.grad(ours, roots)[0]
