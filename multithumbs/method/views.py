@@ -6,8 +6,8 @@ camera (VGGT's depth head, the two-view backend's dense depth, the simulation), 
 camera carries the frame's points with it: every loss on the people of that frame is relative to the
 same camera and cannot see it. What does see it is the disagreement of the two frames' static scenes.
 :func:`register_views` corrects the second frame's camera (and with it its points) so that each frame's
-background points land on the other frame's surface: Levenberg-Marquardt-type least squares
-(``scipy.optimize.least_squares``, robust Cauchy loss) on the depth difference between a point carried
+background points land on the other frame's surface: trust-region least squares
+(``scipy.optimize.least_squares``, robust Cauchy loss, coarse to fine) on the depth difference between a point carried
 into the other camera and that camera's (smoothed, bilinear) depth map where it projects. Points hidden
 there (farther than the surface by more than the robust scale: furniture, the far side of an object)
 and points outside the other image or on a person are left out. The first frame's camera fixes the
@@ -77,8 +77,9 @@ def register_views(point_cam: np.ndarray, usable: np.ndarray, K: np.ndarray, R: 
             neighbour, which sits half a pixel off and would bias the registration); default: all.
         K, R, t: ``(2, 3, 3)``, ``(2, 3, 3)``, ``(2, 3)`` the frames' cameras in the (metric) space.
         samples: points sampled per frame (an even subsample of the usable pixels).
-        robust_scale: Cauchy scale and occlusion margin (m) of the first pass.
-        fine_scale: the same for the second pass, from the first's result.
+        robust_scale: Cauchy scale and occlusion margin (m) of the middle pass; the first pass uses three
+            times it.
+        fine_scale: the same for the last pass.
         smoothing_px: Gaussian smoothing of the depth maps the points are compared with (pixels).
         min_points: fewest usable points per frame to attempt a registration.
         edge_tolerance: pixels whose smoothed depth differs from their own by more than this fraction
@@ -130,21 +131,20 @@ def register_views(point_cam: np.ndarray, usable: np.ndarray, K: np.ndarray, R: 
             out.append(np.where(ok, r, 0.0) if not keep_all else np.where(ok, r, np.nan))
         return np.concatenate(out)
 
+    median = lambda r: float(np.median(np.abs(r[np.isfinite(r)]))) if np.isfinite(r).any() else float("nan")
     before = residuals(np.zeros(6), keep_all=True)
-    # Coarse to fine: the first pass reaches from a misregistration of decimetres, the second settles
-    # with the centimetre-level points only (the first pass's kernel still weighs those near-fully).
-    x = np.zeros(6)
+    # Coarse to fine: the first pass reaches from a misregistration of decimetres, the last settles with
+    # the centimetre-level points only (the wider kernels still weigh outliers of that size near-fully).
+    x, passes = np.zeros(6), 0
     for scale in (3 * robust_scale, robust_scale, fine_scale):
         fit = least_squares(residuals, x, loss="cauchy", f_scale=scale, kwargs={"margin": scale},
                             x_scale=np.array([0.01, 0.01, 0.01, 0.05, 0.05, 0.05]), diff_step=1e-4)
         if not fit.success or not np.all(np.isfinite(fit.x)):
             break
-        x = fit.x
-    after = residuals(fit.x, keep_all=True)
-    if not fit.success or not np.all(np.isfinite(fit.x)):
-        return ViewRegistration(R, t, np.zeros(6), float(np.nanmedian(np.abs(before))), float("nan"), 0, False)
-    R1, C1 = cameras(fit.x)
-    R_new = np.stack([R[0], R1])
-    t_new = np.stack([t[0], -R1 @ C1])
-    return ViewRegistration(R_new, t_new, fit.x, float(np.nanmedian(np.abs(before))),
-                            float(np.nanmedian(np.abs(after))), int(np.isfinite(after).sum()), True)
+        x, passes = fit.x, passes + 1
+    if passes == 0:
+        return ViewRegistration(R, t, np.zeros(6), median(before), float("nan"), 0, False)
+    after = residuals(x, keep_all=True)
+    R1, C1 = cameras(x)
+    return ViewRegistration(np.stack([R[0], R1]), np.stack([t[0], -R1 @ C1]), x, median(before), median(after),
+                            int(np.isfinite(after).sum()), True)
