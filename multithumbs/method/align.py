@@ -27,7 +27,7 @@ depth, the simulation), so a camera error carries its points with it, and the pe
 relative to that camera, cannot see it: the paper's stage 3 camera refinement then has nothing to fix
 (standard suite: no_cam 153.6 mm against full 154.3 before the registration). What does see it is the
 disagreement of the two frames' static scenes, which :func:`multithumbs.method.views.register_views`
-removes before the stages (full 154.3 -> 121.4 mm; docs/RESULTS.md). In stage 3 such points move with
+removes before the stages (full 154.3 -> 118.9 mm; docs/RESULTS.md). In stage 3 such points move with
 their camera (``points_follow_cameras``), so refining a camera cannot tear a frame's people from its
 scene, and a weak prior on the cameras fixes the gauge this leaves. Points observed in both frames
 (triangulated) stay where they are, as the paper's objective has them.
@@ -356,7 +356,6 @@ def _align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignCon
     maps = maps * s
     R0, t0 = space.R.astype(np.float64), space.t.astype(np.float64) * s
     follow = single_view & valid if config.points_follow_cameras else np.zeros_like(valid)
-    registration = None
     if not skip and config.refine_cameras and config.register_views and follow.any():
         point_cam = np.einsum("kij,khwj->khwi", R0, maps) + t0[:, None, None]
         registration = register_views(point_cam, follow & ~people.masks.any(axis=1), space.K, R0, t0,

@@ -51,7 +51,7 @@ class PostConfig:
     component) and a propagated root good to ~6 cm give ``w_pose_prior ≈ 0.0007`` and ``w_root ≈ 0.01``
     against ``w_2d = 10`` (about 24 keypoints per frame share it). The earlier ``w_pose_prior = 0.01``,
     ``w_root = 1`` held pose and roots ~10x and ~100x too firmly on the estimator's values; standard
-    suite, full method: W-MPJPE 165.7 -> 154.1 mm, PA-MPJPE 20.5 -> 15.9 mm, Accel 7.57 -> 5.20
+    suite, full method: W-MPJPE 165.7 -> 154.3 mm, PA-MPJPE 20.5 -> 15.8 mm, Accel 7.57 -> 5.19
     (docs/RESULTS.md).
         pose_prior: ``"gaussian"`` (substitute, default) or ``"vposer"`` (needs ``vposer`` in :func:`post_process`).
         keypoint_confidence: keypoints below it are ignored.
