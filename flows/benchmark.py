@@ -20,7 +20,7 @@ from tasks.method import method_params
 
 @flow(name="benchmark-run")
 def _benchmark_run(scenes: list[dict], variants: list[str], store_url: str) -> dict[str, Any]:
-    from multithumbs.bench import METRIC_KEYS, SceneScores, summarize
+    from multithumbs.bench import SceneScores, scene_metrics, summarize
 
     progress = create_progress_artifact(progress=0.0, description=f"{len(scenes)} scenes x {len(variants)} variants")
     refs = [f.result() for f in [simulate_inputs.submit(store_url, scene) for scene in scenes]]
@@ -31,20 +31,12 @@ def _benchmark_run(scenes: list[dict], variants: list[str], store_url: str) -> d
     futures = [evaluate_result.submit(res, job[0]["truth"]) for res, job in zip(results, jobs)]
     scores = []
     for i, scene in enumerate(scenes):
-        metrics = {}
+        metrics, labels = {}, {}
         for j, v in enumerate(variants):
-            m = futures[i * len(variants) + j].result()
-            metrics[v] = {k: _float(m.get(k)) for k in (*METRIC_KEYS, "scored_frames", "coverage")}
-        scores.append(SceneScores(scene["name"], metrics, {v: math.nan for v in variants}))
+            metrics[v], labels[v] = scene_metrics(futures[i * len(variants) + j].result())
+        scores.append(SceneScores(scene["name"], metrics, {v: math.nan for v in variants}, labels))
     update_progress_artifact(progress, 100.0)
     return summarize(scores, variants)
-
-
-def _float(value: Any) -> float:
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 @flow(name="benchmark")

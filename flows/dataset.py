@@ -128,6 +128,10 @@ def reconstruct_dataset(items: list[dict[str, Any]], out_root: str, store_url: s
 
 
 def _cell(value: Any) -> str:
+    if isinstance(value, (list, tuple)):
+        return "; ".join(_cell(v) for v in value)
+    if isinstance(value, str):
+        return value
     return "—" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.2f}"
 
 

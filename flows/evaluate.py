@@ -30,7 +30,9 @@ def evaluate(result_path: str, truth_path: str) -> dict[str, Any]:
     metrics = evaluate_files(result_path, truth_path)
     rows = metrics_rows(metrics)
     create_table_artifact(key="evaluation", table=rows, description=f"{result_path} vs {truth_path}")
-    lines = [f"# Evaluation of `{result_path}`", "", f"Ground truth `{truth_path}`.", "", "| metric | value |",
-             "|---|---|", *(f"| {r['metric']} | {r['value']:.3f} |" for r in rows if r["value"] is not None)]
+    value = lambda v: f"{v:.3f}" if isinstance(v, (int, float)) else str(v)
+    lines = [f"# Evaluation of `{result_path}`", "", f"Ground truth `{truth_path}`.", "", "| metric | value | unit |",
+             "|---|---|---|", *(f"| {r['metric']} | {value(r['value'])} | {r['unit']} |" for r in rows
+                                 if r["value"] is not None)]
     create_markdown_artifact(key="evaluation-report", markdown="\n".join(lines) + "\n")
     return metrics

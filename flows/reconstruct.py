@@ -18,13 +18,17 @@ from tasks.inputs import simulate_inputs
 from tasks.outputs import write_outputs
 from tasks.method import method_params
 
-METRIC_ORDER = METRIC_KEYS
-"""The metrics in the paper's order (one definition: :data:`multithumbs.bench.METRIC_KEYS`)."""
+METRIC_ORDER = (*METRIC_KEYS, "w_mpjpe_track", "wa_mpjpe_track", "accel_world", "ids_total", "ate_alignment")
+"""Per-video table columns: the headline metrics in the paper's order (:data:`multithumbs.bench.METRIC_KEYS`),
+this project's own variants, and how the video's ATE was aligned."""
 
 
 def metrics_rows(metrics: dict[str, Any]) -> list[dict[str, Any]]:
-    """The metrics as table rows, in the paper's order."""
-    return [{"metric": k, "value": metrics[k]} for k in METRIC_ORDER if k in metrics]
+    """The metrics as table rows ``metric, value, unit``: the headline ones in the paper's order, then this
+    project's own, then how each ATE was aligned (:func:`multithumbs.metrics.evaluate.report_rows`)."""
+    from multithumbs.metrics.evaluate import report_rows
+
+    return report_rows(metrics)
 
 
 def publish_outputs(out_dir: str | Path, name: str, variant: str, video_path: str, method_refs: dict[str, ArtifactRef],

@@ -6,8 +6,10 @@ have in common: one alignment per distinct alignment setting, one propagation pe
 propagation setting, one post-processing per distinct placement, identities and post setting — and
 score each with :func:`multithumbs.metrics.evaluate.evaluate`. Scenes run in parallel worker processes.
 
-Aggregation over scenes: pose errors (W-MPJPE, WA-MPJPE, MPJPE, PA-MPJPE, MPVPE, Accel) are frame-weighted
-means over scored frames (METRICS.md); ATE, IDs, PCK*, Jitter and FS are means over scenes.
+Aggregation over scenes: pose errors (W-MPJPE, WA-MPJPE, MPJPE, PA-MPJPE, MPVPE, Accel and their
+``_track``/``_world`` variants, FS with truth) are weighted by each scene's scored frames (METRICS.md);
+ATE, IDs, PCK*, Jitter and FS are means over scenes (ATE per sequence as DROID-SLAM and TRAM), and the
+switch counts also have a total.
 """
 
 from __future__ import annotations
@@ -15,8 +17,8 @@ from __future__ import annotations
 import math
 import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
-from typing import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -26,7 +28,16 @@ from multithumbs.pipeline import (VARIANTS, MethodConfig, Placement, align_cuts,
 from multithumbs.synth.scene import SceneConfig
 
 METRIC_KEYS = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "ate", "ids", "pck", "jitter", "fs")
-FRAME_WEIGHTED = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel")
+"""The headline metrics in the paper's order, with the field's meaning (METRICS.md)."""
+EXTRA_KEYS = ("w_mpjpe_track", "wa_mpjpe_track", "accel_world", "fs_gt", "ate_mean", "ids_total",
+              "ids_within_shots", "coverage")
+"""This project's own variants and diagnostics, reported beside the headline metrics."""
+LABEL_KEYS = ("ate_alignment", "ids_at_cuts")
+"""Per-scene values that are not numbers: the alignment each ATE used, the switches through each cut."""
+FRAME_WEIGHTED = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "w_mpjpe_track", "wa_mpjpe_track",
+                  "accel_world", "fs_gt")
+SUMMED = ("ids_total", "ids_within_shots")
+"""Metrics that also get a ``total`` over scenes."""
 BACKENDS = {"perception": "simulated", "shared_space": "simulated (stands in for VGGT)",
             "camera_tracking": "simulated (stands in for DROID-SLAM)", "shots": "ground truth cuts"}
 
@@ -37,13 +48,15 @@ class SceneScores:
 
     Attributes:
         scene: scene name.
-        metrics: variant -> metric name -> value (plus ``scored_frames`` and ``coverage``).
+        metrics: variant -> metric name -> value (plus ``scored_frames``).
         seconds: variant -> wall time of its own stages (shared stages counted where first run).
+        labels: variant -> :data:`LABEL_KEYS` name -> value (the single sequence's entry).
     """
 
     scene: str
     metrics: dict[str, dict[str, float]]
     seconds: dict[str, float]
+    labels: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
 def _alignment_key(config: MethodConfig) -> tuple:
@@ -71,7 +84,7 @@ def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: Met
     aligned_cache: dict[tuple, list] = {}
     placement_cache: dict[tuple, Placement] = {}
     world_cache: dict[tuple, tuple] = {}
-    metrics, seconds = {}, {}
+    metrics, seconds, labels = {}, {}, {}
     for name in variants:
         cfg = variant_config(name, base)
         start = time.perf_counter()
@@ -93,9 +106,14 @@ def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: Met
         world, _ = world_cache[key]
         result = to_world_result(shots, tracks, world, ids, world_diagnostics(aligned, placement, ids))
         seconds[name] = time.perf_counter() - start
-        scores = evaluate(result, video.truth, body)
-        metrics[name] = {k: _float(scores.get(k)) for k in (*METRIC_KEYS, "scored_frames", "coverage")}
-    return SceneScores(config.name, metrics, seconds)
+        metrics[name], labels[name] = scene_metrics(evaluate(result, video.truth, body))
+    return SceneScores(config.name, metrics, seconds, labels)
+
+
+def scene_metrics(report: dict) -> tuple[dict[str, float], dict[str, Any]]:
+    """The numbers and labels the bench keeps from one scene's evaluation report."""
+    numbers = {k: _float(report.get(k)) for k in (*METRIC_KEYS, *EXTRA_KEYS, "scored_frames")}
+    return numbers, {k: report[k][0] for k in LABEL_KEYS if report.get(k)}
 
 
 def _float(value) -> float:
@@ -138,11 +156,14 @@ def run_suite(configs: Sequence[SceneConfig], variants: Sequence[str] = VARIANTS
 
 
 def summarize(scenes: Sequence[SceneScores], variants: Sequence[str] = VARIANTS) -> dict:
-    """variant -> metric -> ``{"per_scene": {scene: value}, "mean": value}`` (module docstring: aggregation)."""
+    """variant -> metric -> ``{"per_scene": {scene: value}, "mean": value}`` (module docstring: aggregation).
+
+    :data:`SUMMED` metrics also get ``"total"``; :data:`LABEL_KEYS` only ``"per_scene"``.
+    """
     out: dict = {}
     for v in variants:
         out[v] = {}
-        for key in METRIC_KEYS:
+        for key in (*METRIC_KEYS, *EXTRA_KEYS):
             per_scene = {s.scene: s.metrics[v][key] for s in scenes}
             values = np.array(list(per_scene.values()), dtype=float)
             if key in FRAME_WEIGHTED:
@@ -153,6 +174,10 @@ def summarize(scenes: Sequence[SceneScores], variants: Sequence[str] = VARIANTS)
                 ok = np.isfinite(values)
                 mean = float(values[ok].mean()) if ok.any() else math.nan
             out[v][key] = {"per_scene": per_scene, "mean": mean}
+            if key in SUMMED:
+                out[v][key]["total"] = float(values[np.isfinite(values)].sum())
+        for key in LABEL_KEYS:
+            out[v][key] = {"per_scene": {s.scene: s.labels.get(v, {}).get(key) for s in scenes}}
         out[v]["seconds"] = {s.scene: s.seconds[v] for s in scenes}
     return out
 

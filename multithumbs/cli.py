@@ -125,12 +125,15 @@ def evaluate_cmd(
     if as_json:
         print(json.dumps(_jsonable(metrics), indent=2, sort_keys=True))
         return
+    from multithumbs.metrics.evaluate import report_rows
+
     table = Table(title=f"{result.name} vs {truth.name}")
     table.add_column("metric")
     table.add_column("value", justify="right")
-    for key, value in metrics.items():
-        if isinstance(value, (int, float)):
-            table.add_row(key, f"{value:.3f}")
+    table.add_column("unit")
+    for row in report_rows(metrics):
+        value = row["value"]
+        table.add_row(row["metric"], f"{value:.3f}" if isinstance(value, (int, float)) else str(value), row["unit"])
     Console().print(table)
 
 

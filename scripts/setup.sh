@@ -14,3 +14,6 @@ PIP=(.venv/bin/python -m pip --disable-pip-version-check -q)
 # Depth-Anything-3 (a learned shared-space backend, tested on a tiny random model): its torchvision
 # requirement does not import beside the CPU torch, and the adapter does not need it.
 "${PIP[@]}" install --no-deps depth-anything-3==0.1.1
+# TrackEval, the reference CLEAR-MOT evaluator the IDs tests compare with: it asks for opencv-python (GUI)
+# too, and its CLEAR metric needs only numpy and scipy.
+"${PIP[@]}" install --no-deps trackeval==1.3.0

@@ -7,8 +7,8 @@ masks) and return :class:`Samples` so sequences pool frame-weighted; :func:`eval
 """
 
 from multithumbs.metrics.alignment import (
-    Correspondence, Samples, apply_similarity, fit_similarity, pair_people, pelvis, track_similarities,
-    apply_track_similarities, window_mask,
+    Correspondence, Samples, ValidFrames, apply_similarity, fit_similarity, pair_people, pelvis,
+    track_similarities, apply_track_similarities, window_mask,
 )
 from multithumbs.metrics.camera import TrajectoryError, absolute_trajectory_error, centre_rank
 from multithumbs.metrics.evaluate import (
@@ -18,22 +18,23 @@ from multithumbs.metrics.gt_free import (
     CrossShotPck, cross_shot_pck, estimate_up, foot_points, foot_sliding, jitter,
 )
 from multithumbs.metrics.identity import (
-    IdSwitches, associate_by_distance, associate_by_iou, box_iou, count_id_switches, match_frames,
+    IdSwitches, associate_by_distance, associate_by_iou, box_iou, clear_mot_match, count_id_switches,
     projected_boxes,
 )
 from multithumbs.metrics.pose import (
-    accel_error, foot_sliding_against_truth, mpjpe, mpvpe, pa_mpjpe, w_mpjpe, wa_mpjpe, world_aligned,
+    WORLD_CHUNK, accel, accel_world, foot_sliding_against_truth, mpjpe, mpvpe, pa_mpjpe, w_mpjpe, wa_mpjpe,
+    world_aligned,
 )
 
 __all__ = [
-    "Correspondence", "Samples", "apply_similarity", "fit_similarity", "pair_people", "pelvis",
+    "Correspondence", "Samples", "ValidFrames", "apply_similarity", "fit_similarity", "pair_people", "pelvis",
     "track_similarities", "apply_track_similarities", "window_mask",
     "TrajectoryError", "absolute_trajectory_error", "centre_rank",
     "EvaluationOptions", "SequenceScores", "body_points", "evaluate", "evaluate_sequences",
     "score_sequence", "summarize",
     "CrossShotPck", "cross_shot_pck", "estimate_up", "foot_points", "foot_sliding", "jitter",
     "IdSwitches", "associate_by_distance", "associate_by_iou", "box_iou", "count_id_switches",
-    "match_frames", "projected_boxes",
-    "accel_error", "foot_sliding_against_truth", "mpjpe", "mpvpe", "pa_mpjpe", "w_mpjpe", "wa_mpjpe",
+    "clear_mot_match", "projected_boxes",
+    "WORLD_CHUNK", "accel", "accel_world", "foot_sliding_against_truth", "mpjpe", "mpvpe", "pa_mpjpe", "w_mpjpe", "wa_mpjpe",
     "world_aligned",
 ]

@@ -1,6 +1,7 @@
 """Shared machinery of the metrics (METRICS.md "Shared machinery").
 
-Masked per-sample values, the pelvis, Umeyama similarity fits over masked points and per track, frame
+Masked per-sample values, the pelvis, Umeyama similarity fits over masked points and per chunk of a
+track's valid frames, the compression of valid frames (:class:`ValidFrames`, as WHAM/GVHMR), frame
 windows that may not span a cut, and the pairing of every true person with one predicted identity.
 Arrays are numpy float64; time series are ``(P, T, ...)`` with a boolean ``valid (P, T)``.
 """
@@ -112,43 +113,98 @@ def fit_similarity(source: np.ndarray, target: np.ndarray, mask: np.ndarray | No
     return umeyama(x, y, weights=weights, with_scale=with_scale), fitted
 
 
+@dataclass(frozen=True)
+class ValidFrames:
+    """Each track's valid frames moved to the front, in order: the compression of WHAM and GVHMR.
+
+    Those references drop invalid frames and treat the rest as consecutive, so chunks, differences and
+    windows run over a track's valid frames; packing does the same on padded ``(P, T, ...)`` arrays.
+
+    Attributes:
+        order: ``(P, T)`` int, ``order[p, i]`` is the frame of track ``p`` stored at packed position ``i``
+            (valid frames first, in time order, then the invalid ones).
+        valid: ``(P, T)`` bool, packed position ``i`` holds a valid frame (``i < count[p]``).
+    """
+
+    order: np.ndarray
+    valid: np.ndarray
+
+    @staticmethod
+    def of(valid: np.ndarray) -> "ValidFrames":
+        """Packing of a ``(P, T)`` validity mask."""
+        valid = np.asarray(valid, dtype=bool)
+        order = np.argsort(~valid, axis=-1, kind="stable")
+        return ValidFrames(order, np.take_along_axis(valid, order, axis=-1))
+
+    @property
+    def frames(self) -> np.ndarray:
+        """``(P, T)`` int original frame of every packed position, -1 where nothing valid is stored."""
+        return np.where(self.valid, self.order, -1)
+
+    def _index(self, series: np.ndarray) -> np.ndarray:
+        return self.order.reshape(self.order.shape + (1,) * (series.ndim - 2))
+
+    def pack(self, series: np.ndarray) -> np.ndarray:
+        """``(P, T, ...)`` series to the packed ``(P, T, ...)``: valid frames first, in time order."""
+        return np.take_along_axis(series, self._index(series), axis=1)
+
+    def unpack(self, packed: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`pack`: every packed entry back to its frame."""
+        out = np.empty_like(packed)
+        np.put_along_axis(out, self._index(packed), packed, axis=1)
+        return out
+
+
 def track_similarities(pred: np.ndarray, true: np.ndarray, valid: np.ndarray,
                        fit: Literal["all", "first_two"] = "all", chunk: int | None = None
                        ) -> tuple[Similarity, np.ndarray]:
-    """One Sim(3) per person and chunk of frames, fitted on the points of its valid frames.
+    """One Sim(3) per person and chunk of its valid frames, fitted on the points of those frames.
+
+    Chunks cut a track's valid frames (compressed, as WHAM/GVHMR), not the frame axis: chunk ``c`` of
+    person ``p`` holds its valid frames number ``c * chunk`` to ``(c + 1) * chunk - 1``, the last one
+    shorter.
 
     Args:
         pred: ``(P, T, N, 3)`` predicted points (joints).
         true: ``(P, T, N, 3)`` true points.
         valid: ``(P, T)`` bool, frames that take part.
-        fit: ``"all"`` valid frames of the chunk (WA-MPJPE) or its ``"first_two"`` valid frames
-            (W-MPJPE; one frame when the chunk has only one).
-        chunk: frames per chunk, or None for the whole track.
+        fit: ``"all"`` frames of the chunk (WA-MPJPE) or its ``"first_two"`` (W-MPJPE; one frame when the
+            chunk has only one).
+        chunk: valid frames per chunk, or None for the whole track.
     Returns:
-        the similarities with batch ``(P, C)``, ``C = ceil(T / chunk)``, and ``fitted (P, C)`` bool.
+        the similarities with batch ``(P, C)``, ``C = ceil(T / chunk)``, and ``fitted (P, C)`` bool
+        (False for chunks past a track's last valid frame).
     """
     if fit not in ("all", "first_two"):
         raise InputError(f"fit: expected 'all' or 'first_two', got {fit!r}")
     p, t, n, _ = pred.shape
     length = _chunk_length(t, chunk)
-    frames = _chunked(valid, length)  # (P, C, L)
+    packing = ValidFrames.of(valid)
+    frames = _chunked(packing.valid, length)  # (P, C, L)
     if fit == "first_two":
         frames = frames & (np.cumsum(frames, axis=-1) <= 2)
     c = frames.shape[1]
     points_mask = np.repeat(frames, n, axis=-1)  # (P, C, L*N)
-    src = _chunked(pred, length).reshape(p, c, length * n, 3)
-    dst = _chunked(true, length).reshape(p, c, length * n, 3)
+    src = _chunked(packing.pack(pred), length).reshape(p, c, length * n, 3)
+    dst = _chunked(packing.pack(true), length).reshape(p, c, length * n, 3)
     return fit_similarity(src, dst, points_mask)
 
 
-def apply_track_similarities(sim: Similarity, points: np.ndarray, chunk: int | None = None) -> np.ndarray:
-    """Apply per-(person, chunk) similarities from :func:`track_similarities` to ``points (P, T, N, 3)``."""
+def apply_track_similarities(sim: Similarity, points: np.ndarray, valid: np.ndarray,
+                             chunk: int | None = None) -> np.ndarray:
+    """Apply per-(person, chunk) similarities from :func:`track_similarities` to ``points (P, T, N, 3)``.
+
+    ``valid`` and ``chunk`` must be those of the fit: they say which chunk each frame belongs to. Invalid
+    frames take the similarity of the chunk their packed position falls in (the identity past the last
+    fitted chunk); they are not scored.
+    """
     p, t, n, _ = points.shape
     length = _chunk_length(t, chunk)
-    chunks = _chunked(points, length)
+    packing = ValidFrames.of(valid)
+    chunks = _chunked(packing.pack(points), length)
     c = chunks.shape[1]
     moved = apply_similarity(sim, chunks.reshape(p, c, length * n, 3))
-    return moved.reshape(p, c * length, n, 3)[:, :t]
+    return packing.unpack(moved.reshape(p, c * length, n, 3)[:, :t])
 
 
 def _chunk_length(num_frames: int, chunk: int | None) -> int:
@@ -168,17 +224,19 @@ def _chunked(series: np.ndarray, length: int) -> np.ndarray:
 
 
 def window_mask(valid: np.ndarray, length: int, cut_frames: Sequence[int] | np.ndarray = (),
-                include_cuts: bool = True) -> np.ndarray:
-    """Which windows of ``length`` consecutive frames count.
+                include_cuts: bool = True, frames: np.ndarray | None = None) -> np.ndarray:
+    """Which windows of ``length`` consecutive entries count.
 
     Args:
-        valid: ``(..., T)`` bool per frame.
-        length: frames per window (3 for acceleration, 2 for a displacement...).
+        valid: ``(..., T)`` bool per entry.
+        length: entries per window (3 for acceleration, 2 for a displacement...).
         cut_frames: ``(C,)`` first frame of each new shot.
         include_cuts: keep windows that span a cut (frames on both sides of one).
+        frames: ``(..., T)`` int video frame of every entry, for packed series (:class:`ValidFrames`);
+            entry ``i`` is frame ``i`` when None.
     Returns:
-        ``(..., T - length + 1)`` bool, window starting at ``t`` has all frames valid (and, unless
-        ``include_cuts``, lies inside one shot). Empty when ``T < length``.
+        ``(..., T - length + 1)`` bool, the window starting at entry ``s`` has all entries valid (and,
+        unless ``include_cuts``, its first and last frame lie in one shot). Empty when ``T < length``.
     """
     t = valid.shape[-1]
     starts = max(t - length + 1, 0)
@@ -186,11 +244,9 @@ def window_mask(valid: np.ndarray, length: int, cut_frames: Sequence[int] | np.n
     for k in range(length):
         ok &= valid[..., k:k + starts]
     if not include_cuts and starts:
-        begin = np.arange(starts)
-        cuts = np.asarray(cut_frames, dtype=np.int64)
-        # A window [s, s + length - 1] spans cut c when s < c <= s + length - 1.
-        spans = ((cuts[None, :] > begin[:, None]) & (cuts[None, :] <= begin[:, None] + length - 1)).any(axis=1)
-        ok &= ~spans
+        frames = np.broadcast_to(np.arange(t), valid.shape) if frames is None else np.asarray(frames)
+        shot = np.searchsorted(np.sort(np.asarray(cut_frames, dtype=np.int64)), frames, side="right")
+        ok &= shot[..., :starts] == shot[..., length - 1:length - 1 + starts]
     return ok
 
 

@@ -7,12 +7,19 @@ Coordinate frames, since the predicted world frame is arbitrary:
   need no alignment and do not depend on the prediction's world frame. The ``*_world`` variants are the
   same errors without root alignment, i.e. the prediction placed in the true world through that frame's
   true camera.
-- W-MPJPE, WA-MPJPE, Accel and FS with ground truth use world joints after a per-person Sim(3)
-  (first two frames, or the whole track; Accel and FS use the whole-track one, so a jump at a cut is
-  not hidden by re-alignment).
-- ATE aligns camera centres with one Sim(3) (or, when they are degenerate, the Sim(3) fitted on all
-  people's joints).
+- ``accel`` (the field's Accel, m/s^2) uses the pelvis-aligned camera-frame joints, as WHAM/GVHMR.
+- W-MPJPE and WA-MPJPE use world joints after a per-person Sim(3) per chunk of 100 valid frames
+  (first two frames, or the whole chunk); ``*_track`` use one chunk per track. ``accel_world``
+  (mm/frame^2) uses the whole-track WA alignment, so a jump at a cut is not hidden by re-alignment.
+- ``fs_gt`` (foot sliding with truth, GVHMR) takes the predicted foot points as predicted, in the
+  prediction's world, where the true feet rest.
+- ATE aligns each sequence's camera centres with one Sim(3) (or, when they are degenerate, the Sim(3)
+  fitted on all people's joints; ``ate_alignment`` says which).
+- IDs associate per frame as TrackEval's CLEAR-MOT does, on 2D boxes (or 3D roots).
 - PCK*, Jitter and FS (the ``fs`` key) read only the reconstruction.
+
+Where a reference masks invalid frames (WHAM, GVHMR) it drops them and treats the rest as consecutive:
+the chunked world errors, ``accel``, ``fs_gt`` and Jitter do the same.
 
 The body model runs once per reconstruction and once per truth, over all people and frames at once.
 """
@@ -40,12 +47,9 @@ from multithumbs.metrics.identity import (
     IdSwitches, associate_by_distance, associate_by_iou, count_id_switches, projected_boxes,
 )
 from multithumbs.metrics.pose import (
-    accel_error, foot_sliding_against_truth, mpjpe, mpvpe, pa_mpjpe, w_mpjpe, wa_mpjpe,
+    WORLD_CHUNK, accel, accel_world, foot_sliding_against_truth, mpjpe, mpvpe, pa_mpjpe, w_mpjpe, wa_mpjpe,
 )
 from multithumbs.types import GroundTruth, WorldResult
-
-W_MPJPE100_CHUNK = 100
-"""Frames per re-alignment window of W-MPJPE100 (WHAM/GVHMR)."""
 
 PCK_ALPHA_STRICT = 0.05
 """The stricter PCK* threshold, always reported as ``pck_005``."""
@@ -56,12 +60,17 @@ class EvaluationOptions:
     """Every open choice of the evaluation, with METRICS.md's defaults; the report echoes them.
 
     Attributes:
-        chunk: W-MPJPE / WA-MPJPE re-alignment window in frames, None for the whole track
-            (``w_mpjpe100`` is always reported as well).
+        chunk: valid frames per re-alignment chunk of the headline ``w_mpjpe`` / ``wa_mpjpe`` (100 as
+            WHAM/GVHMR's W-MPJPE100); None for one chunk per track. ``*_track`` are always reported.
         root_align: ``mpjpe`` and ``mpvpe`` subtract the pelvis (``*_world`` are always unaligned).
-        include_cuts: Accel and Jitter count windows that span a cut.
+        include_cuts: ``accel_world`` and Jitter count windows that span a cut.
         id_association: ``"box_iou"`` (2D boxes) or ``"root_distance"`` (3D roots, when boxes are
             unavailable) for the per-frame IDs association.
+        truth_boxes: the true boxes the IoU association uses: ``"mesh"``, the true mesh projected by the
+            true camera and clipped to the image, which is amodal like the predicted boxes (and like
+            MOTChallenge's full-body boxes); or ``"given"``, ``GroundTruth.bboxes`` as the dataset has them
+            (in the synthetic suite the box of the visible part, which shrinks under occlusion while the
+            predicted box does not, and makes switches between overlapping people that never happened).
         min_iou: IoU a box pair needs to be associated.
         max_root_distance: metres a root pair may be apart to be associated.
         pck_alpha: PCK* threshold as a fraction of the keypoint box size (the ``pck`` key).
@@ -72,10 +81,11 @@ class EvaluationOptions:
         up: FS without truth: the reconstruction's up direction; None estimates it from the bodies.
     """
 
-    chunk: int | None = None
+    chunk: int | None = WORLD_CHUNK
     root_align: bool = True
     include_cuts: bool = True
     id_association: Literal["box_iou", "root_distance"] = "box_iou"
+    truth_boxes: Literal["mesh", "given"] = "mesh"
     min_iou: float = 0.5
     max_root_distance: float = 0.5
     pck_alpha: float = 0.1
@@ -90,6 +100,8 @@ class EvaluationOptions:
             raise InputError(f"chunk: must be a positive number of frames or None, got {self.chunk}")
         if self.id_association not in ("box_iou", "root_distance"):
             raise InputError(f"id_association: expected 'box_iou' or 'root_distance', got {self.id_association!r}")
+        if self.truth_boxes not in ("mesh", "given"):
+            raise InputError(f"truth_boxes: expected 'mesh' or 'given', got {self.truth_boxes!r}")
         for name in ("min_iou", "max_root_distance", "pck_alpha", "contact_speed", "contact_height"):
             if not getattr(self, name) > 0:
                 raise InputError(f"{name}: must be positive, got {getattr(self, name)}")
@@ -122,6 +134,7 @@ class SequenceScores:
         id_switches: CLEAR-MOT switches.
         ate: the camera trajectory error, None when it could not be computed (see ``notes``).
         notes: metric name -> why it is NaN or how it was computed.
+        switch_events: every switch (:meth:`IdSwitches.events`): frame, true person, ids, cut.
     """
 
     samples: dict[str, Samples]
@@ -129,6 +142,7 @@ class SequenceScores:
     id_switches: IdSwitches
     ate: TrajectoryError | None
     notes: dict[str, str] = field(default_factory=dict)
+    switch_events: list[dict[str, int]] = field(default_factory=list)
 
 
 def body_points(body_model: Any, world: WorldResult) -> tuple[np.ndarray, np.ndarray]:
@@ -181,7 +195,8 @@ def score_sequence(result: WorldResult, truth: GroundTruth, body_model: Any,
     scored = pairing.scored
     paired_joints, paired_joints_cam = pairing.gather(pred_joints), pairing.gather(pred_joints_cam)
     paired_vertices_cam = pairing.gather(pred_vertices_cam)
-    switches = _id_switches(result, truth, options, pred_joints_cam, pred_vertices_cam, true_joints_cam)
+    switches, switch_events = _id_switches(result, truth, options, pred_joints_cam, pred_vertices_cam,
+                                           true_joints_cam, true_vertices_cam)
 
     samples = {
         "mpjpe": mpjpe(paired_joints_cam, true_joints_cam, scored, root_align=options.root_align),
@@ -192,20 +207,22 @@ def score_sequence(result: WorldResult, truth: GroundTruth, body_model: Any,
         "mpvpe_world": mpvpe(paired_vertices_cam, true_vertices_cam, paired_joints_cam, true_joints_cam,
                              scored, root_align=False),
         "w_mpjpe": w_mpjpe(paired_joints, true_joints, scored, chunk=options.chunk),
-        "w_mpjpe100": w_mpjpe(paired_joints, true_joints, scored, chunk=W_MPJPE100_CHUNK),
         "wa_mpjpe": wa_mpjpe(paired_joints, true_joints, scored, chunk=options.chunk),
+        "w_mpjpe_track": w_mpjpe(paired_joints, true_joints, scored, chunk=None),
+        "wa_mpjpe_track": wa_mpjpe(paired_joints, true_joints, scored, chunk=None),
+        "accel": accel(paired_joints_cam, true_joints_cam, scored, truth.world.fps),
     }
     del pred_vertices_cam, paired_vertices_cam, true_vertices_cam
 
-    # Accel and FS with truth: world points under the whole-track WA alignment of each person.
+    # accel_world: world joints under the whole-track WA alignment of each person, so a jump at a cut
+    # is not hidden by re-alignment.
     track_sim, _ = track_similarities(paired_joints, true_joints, scored, "all")
-    aligned_joints = apply_track_similarities(track_sim, paired_joints)
-    samples["accel"] = accel_error(aligned_joints, true_joints, scored, true_cuts, options.include_cuts)
+    aligned_joints = apply_track_similarities(track_sim, paired_joints, scored)
+    samples["accel_world"] = accel_world(aligned_joints, true_joints, scored, true_cuts, options.include_cuts)
     foot_ids = getattr(body_model, "foot_vertex_ids", None)
     pred_feet = foot_points(pred_joints, pred_vertices, foot_ids)
-    aligned_feet = apply_track_similarities(track_sim, pairing.gather(pred_feet))
     true_feet = foot_points(true_joints, true_vertices, foot_ids)
-    samples["fs_gt"] = foot_sliding_against_truth(aligned_feet, true_feet, scored, true_cuts,
+    samples["fs_gt"] = foot_sliding_against_truth(pairing.gather(pred_feet), true_feet, scored,
                                                   options.contact_speed)
 
     ate = _camera_error(result, truth, paired_joints, true_joints, scored, notes)
@@ -213,7 +230,7 @@ def score_sequence(result: WorldResult, truth: GroundTruth, body_model: Any,
         samples["ate"] = ate.errors
 
     samples.update(_gt_free(result, pred_joints, pred_feet, options, notes))
-    return SequenceScores(samples, pairing, switches, ate, notes)
+    return SequenceScores(samples, pairing, switches, ate, notes, switch_events)
 
 
 def _camera_error(result: WorldResult, truth: GroundTruth, paired_joints: np.ndarray, true_joints: np.ndarray,
@@ -234,18 +251,29 @@ def _camera_error(result: WorldResult, truth: GroundTruth, paired_joints: np.nda
     return ate
 
 
+ATE_ALIGNMENTS = {False: "sim3_camera_centres", True: "sim3_people_joints"}
+"""How a sequence's ATE was aligned: Umeyama on the camera centres, or (degenerate centres) the WA
+Sim(3) fitted on all people's joints."""
+
+
 def _id_switches(result: WorldResult, truth: GroundTruth, options: EvaluationOptions,
-                 pred_joints_cam: np.ndarray, pred_vertices_cam: np.ndarray, true_joints_cam: np.ndarray
-                 ) -> IdSwitches:
-    """Per-frame association (box IoU or root distance) and the CLEAR-MOT switches."""
+                 pred_joints_cam: np.ndarray, pred_vertices_cam: np.ndarray, true_joints_cam: np.ndarray,
+                 true_vertices_cam: np.ndarray) -> tuple[IdSwitches, list[dict[str, int]]]:
+    """Per-frame CLEAR-MOT association (box IoU or root distance), the switches and each one's details."""
     if options.id_association == "box_iou":
-        # Predicted boxes: the predicted mesh projected by the predicted camera, clipped to the image.
+        # Predicted boxes: the predicted mesh projected by the predicted camera, clipped to the image, so
+        # amodal (the whole body, occluded parts too); the true boxes must be the same kind.
         boxes, in_image = projected_boxes(pred_vertices_cam, result.K, result.image_size)
-        matched = associate_by_iou(truth.bboxes, truth.visible, boxes, result.valid & in_image, options.min_iou)
+        if options.truth_boxes == "mesh":
+            true_boxes, _ = projected_boxes(true_vertices_cam, truth.world.K, truth.world.image_size)
+        else:
+            true_boxes = truth.bboxes
+        matched = associate_by_iou(true_boxes, truth.visible, boxes, result.valid & in_image, options.min_iou)
     else:
         matched = associate_by_distance(pelvis(true_joints_cam), truth.visible, pelvis(pred_joints_cam),
                                         result.valid, options.max_root_distance)
-    return count_id_switches(matched, result.person_ids, len(truth.world.cut_frames))
+    switches = count_id_switches(matched, result.person_ids, truth.world.cut_frames)
+    return switches, switches.events(matched, result.person_ids)
 
 
 def _gt_free(result: WorldResult, pred_joints: np.ndarray, pred_feet: np.ndarray, options: EvaluationOptions,
@@ -280,18 +308,46 @@ def _gt_free(result: WorldResult, pred_joints: np.ndarray, pred_feet: np.ndarray
 
 
 POOLED_MEANS = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "jitter", "fs",
-                "mpjpe_world", "mpvpe_world", "w_mpjpe100", "fs_gt")
+                "mpjpe_world", "mpvpe_world", "w_mpjpe_track", "wa_mpjpe_track", "accel_world", "fs_gt")
 """Metrics reported as the mean of their pooled samples."""
 
 
+METRIC_UNITS = {
+    "w_mpjpe": "mm", "wa_mpjpe": "mm", "mpjpe": "mm", "pa_mpjpe": "mm", "mpvpe": "mm", "accel": "m/s^2",
+    "ate": "m", "ids": "switches/sequence", "pck": "%", "jitter": "10 m/s^3", "fs": "mm/frame",
+    "w_mpjpe_track": "mm", "wa_mpjpe_track": "mm", "accel_world": "mm/frame^2", "fs_gt": "mm",
+    "mpjpe_world": "mm", "mpvpe_world": "mm", "ate_mean": "m", "ids_total": "switches",
+    "ids_per_cut": "switches/cut", "ids_within_shots": "switches", "pck_005": "%", "coverage": "fraction",
+}
+"""The unit of every number :func:`summarize` reports (the headline keys first, in the paper's order)."""
+
+
+def report_rows(report: dict[str, Any]) -> list[dict[str, Any]]:
+    """A report as table rows ``{"metric", "value", "unit"}``: every number of :data:`METRIC_UNITS`, then
+    how each sequence's ATE was aligned and the switches through each cut, as text."""
+    rows = [{"metric": k, "value": report[k], "unit": unit} for k, unit in METRIC_UNITS.items() if k in report]
+    for key in ("ate_alignment", "ids_at_cuts"):
+        if key in report:
+            rows.append({"metric": key, "value": "; ".join(str(v) for v in report[key]), "unit": ""})
+    return rows
+
+
 def summarize(scores: Sequence[SequenceScores], options: EvaluationOptions) -> dict[str, Any]:
-    """Pool sequences into the report: frame-weighted means, ATE RMSE over all frames, IDs per sequence.
+    """Pool sequences into the report: frame-weighted means; ATE and IDs per sequence, then averaged.
 
     Returns:
-        a flat dict: ``w_mpjpe, wa_mpjpe, mpjpe, pa_mpjpe, mpvpe`` (mm), ``accel`` (mm/frame^2),
-        ``ate`` (RMSE, m), ``ids`` (switches per sequence), ``pck`` (%), ``jitter`` (10 m/s^3), ``fs``
-        (mm/frame), and ``coverage, ids_per_cut, pck_005, ate_mean, ate_fallback, mpjpe_world,
-        mpvpe_world, w_mpjpe100, fs_gt`` (mm), ``num_sequences, scored_frames, notes, options``.
+        a flat dict of the headline metrics ``w_mpjpe, wa_mpjpe`` (chunks of 100 valid frames), ``mpjpe,
+        pa_mpjpe, mpvpe`` (mm), ``accel`` (m/s^2), ``ate`` (m: mean over sequences of each one's RMSE,
+        as DROID-SLAM and TRAM report), ``ids`` (switches per sequence, averaged over sequences), ``pck``
+        (%), ``jitter`` (10 m/s^3), ``fs`` (mm/frame); this project's own ``w_mpjpe_track,
+        wa_mpjpe_track`` (one chunk per track, mm), ``accel_world`` (mm/frame^2), ``fs_gt`` (mm),
+        ``mpjpe_world, mpvpe_world`` (mm); and ``ate_mean`` (mean over sequences of each one's mean
+        error), ``ate_per_sequence``, ``ate_alignment`` (per sequence: ``sim3_camera_centres`` or
+        ``sim3_people_joints``), ``ate_fallback`` (any sequence used the joints), ``ids_total``,
+        ``ids_per_sequence``, ``ids_per_cut`` (all switches / all cuts), ``ids_at_cuts`` (per sequence,
+        switches through each cut), ``ids_within_shots``, ``id_switch_events`` (per sequence, every switch's
+        frame, true person, ids and cut), ``coverage, pck_005, num_sequences,
+        scored_frames, notes, options``.
     """
     if not scores:
         raise InputError("sequences: nothing to evaluate")
@@ -300,13 +356,22 @@ def summarize(scores: Sequence[SequenceScores], options: EvaluationOptions) -> d
         return Samples.concatenate([s.samples[name] for s in scores if name in s.samples])
 
     report: dict[str, Any] = {name: pooled(name).mean() for name in POOLED_MEANS}
-    ate = pooled("ate")
-    report["ate"], report["ate_mean"] = ate.rms(), ate.mean()
-    report["ate_fallback"] = any(s.ate is not None and s.ate.fallback for s in scores)
+    trajectories = [s.ate for s in scores]
+    rmse = [float("nan") if a is None else a.rmse for a in trajectories]
+    report["ate"] = _mean_of_finite(rmse)
+    report["ate_mean"] = _mean_of_finite([float("nan") if a is None else a.mean for a in trajectories])
+    report["ate_per_sequence"] = rmse
+    report["ate_alignment"] = [None if a is None else ATE_ALIGNMENTS[a.fallback] for a in trajectories]
+    report["ate_fallback"] = any(a is not None and a.fallback for a in trajectories)
     totals = [s.id_switches.total for s in scores]
     cuts = sum(s.id_switches.num_cuts for s in scores)
     report["ids"] = float(np.mean(totals))
+    report["ids_total"] = int(sum(totals))
+    report["ids_per_sequence"] = totals
     report["ids_per_cut"] = sum(totals) / cuts if cuts else float("nan")
+    report["ids_at_cuts"] = [s.id_switches.at_cuts for s in scores]
+    report["ids_within_shots"] = int(sum(s.id_switches.within_shots for s in scores))
+    report["id_switch_events"] = [s.switch_events for s in scores]
     for key in ("pck", "pck_005"):
         report[key] = mean_of_directions(pooled(f"{key}_forward").mean(), pooled(f"{key}_backward").mean())
     visible = sum(int(s.correspondence.visible.sum()) for s in scores)
@@ -327,6 +392,11 @@ def summarize(scores: Sequence[SequenceScores], options: EvaluationOptions) -> d
     return report
 
 
+def _mean_of_finite(values: Sequence[float]) -> float:
+    finite = [v for v in values if np.isfinite(v)]
+    return float(np.mean(finite)) if finite else float("nan")
+
+
 def evaluate(result: WorldResult, truth: GroundTruth, body_model: Any, **options: Any) -> dict[str, Any]:
     """Score one reconstruction against its ground truth with every metric of METRICS.md.
 
@@ -345,8 +415,8 @@ def evaluate(result: WorldResult, truth: GroundTruth, body_model: Any, **options
 
 def evaluate_sequences(pairs: Sequence[tuple[WorldResult, GroundTruth]], body_model: Any,
                        **options: Any) -> dict[str, Any]:
-    """Score several sequences and pool them: means over all scored frames of all people of all
-    sequences (frame-weighted), IDs averaged over sequences. Options as :func:`evaluate`."""
+    """Score several sequences and pool them: pose errors over all scored frames of all people of all
+    sequences (frame-weighted), ATE and IDs per sequence then averaged. Options as :func:`evaluate`."""
     opts = EvaluationOptions.from_kwargs(options)
     if not pairs:
         raise InputError("sequences: nothing to evaluate")

@@ -13,7 +13,7 @@ import numpy as np
 
 from multithumbs.errors import InputError
 from multithumbs.geometry import project_points
-from multithumbs.metrics.alignment import MM_PER_M, Samples, window_mask
+from multithumbs.metrics.alignment import MM_PER_M, Samples, ValidFrames, window_mask
 
 SMPL_NUM_VERTICES = 6890
 """Vertices of the SMPL mesh; the foot vertices below index it."""
@@ -117,20 +117,25 @@ def cross_shot_pck(joints: np.ndarray, valid: np.ndarray, keypoints2d: np.ndarra
 
 def jitter(joints: np.ndarray, valid: np.ndarray, fps: float,
            cut_frames: Sequence[int] | np.ndarray = (), include_cuts: bool = True) -> Samples:
-    """Jitter (WHAM/GVHMR): mean norm of the third difference times ``fps^3``, in units of 10 m/s^3.
+    """Jitter (GVHMR ``compute_jitter``): mean norm of the third difference times ``fps^3``, in 10 m/s^3.
+
+    Per person, over its valid frames in order (compressed, as GVHMR's masking does): every four
+    consecutive compressed frames make a window.
 
     Args:
         joints: ``(P, T, J, 3)`` world joints, metres.
-        valid: ``(P, T)`` bool; a window of four consecutive valid frames counts.
+        valid: ``(P, T)`` bool, frames to use.
         fps: frames per second.
         cut_frames: ``(C,)``.
-        include_cuts: count windows that span a cut.
+        include_cuts: count windows whose first and last frame lie in different shots.
     Returns:
-        ``(P, T - 3)`` samples (mean over joints per window).
+        ``(P, T - 3)`` samples over packed windows (mean over joints per window).
     """
     if not fps > 0:
         raise InputError(f"fps: must be positive, got {fps}")
-    mask = window_mask(valid, 4, cut_frames, include_cuts)
+    packing = ValidFrames.of(valid)
+    joints = packing.pack(joints)
+    mask = window_mask(packing.valid, 4, cut_frames, include_cuts, frames=packing.frames)
     if not mask.shape[-1]:
         return Samples(np.zeros(mask.shape), mask)
     jerk = (joints[:, 3:] - 3.0 * joints[:, 2:-1] + 3.0 * joints[:, 1:-2] - joints[:, :-3]) * fps ** 3

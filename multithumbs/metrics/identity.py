@@ -1,9 +1,13 @@
-"""Identity metric (METRICS.md "IDs"): CLEAR-MOT identity switches.
+"""Identity metric (METRICS.md "IDs"): CLEAR-MOT identity switches, as TrackEval counts them.
 
-Per frame, true people are associated with predictions by Hungarian on 2D box IoU (pairs need
-IoU >= 0.5) or, when boxes are unavailable, on 3D root distance (pairs need <= 0.5 m). A switch is a
-true person matched to a predicted identity different from the last one it was matched to, however
-long ago. Reported per sequence (total) and per cut.
+Per frame, true people are associated with predictions the way TrackEval's CLEAR metric does
+(``trackeval/metrics/clear.py``, the MOTChallenge evaluator): a similarity matrix (2D box IoU, or when
+boxes are unavailable TrackEval's Euclidean similarity ``max(0, 1 - d / (2 * max_distance))`` of 3D
+roots) plus a bonus of 1000 for the pairs matched at the previous timestep, pairs below the threshold
+0.5 removed, then Hungarian. So last frame's correspondences are kept while they stay valid and two
+people who overlap for a few frames do not swap. A switch is a true person matched to a predicted
+identity different from the last one it was matched to, however long ago. Reported per sequence
+(total), per cut (switches whose gap spans that cut) and within shots.
 """
 
 from __future__ import annotations
@@ -57,32 +61,53 @@ def projected_boxes(points_cam: np.ndarray, K: np.ndarray, image_size: tuple[int
     return boxes, present
 
 
-def match_frames(cost: np.ndarray, allowed: np.ndarray) -> np.ndarray:
-    """Per-frame Hungarian association restricted to allowed pairs.
+SIMILARITY_THRESHOLD = 0.5
+"""TrackEval CLEAR's ``THRESHOLD``: a pair needs at least this similarity to match."""
+
+CONTINUATION_BONUS = 1000.0
+"""TrackEval CLEAR's weight on last timestep's matches (it exceeds any similarity sum)."""
+
+
+def clear_mot_match(similarity: np.ndarray, true_present: np.ndarray, pred_present: np.ndarray,
+                    threshold: float = SIMILARITY_THRESHOLD) -> np.ndarray:
+    """Per-frame CLEAR-MOT association, step for step as TrackEval's ``CLEAR.eval_sequence``.
+
+    At every frame with someone on both sides: score = similarity + 1000 where the pair was matched at
+    the previous such frame, zero where the similarity is below ``threshold``; Hungarian maximises the
+    score; pairs of zero score stay unmatched. A frame with no true person or no prediction leaves the
+    previous matches in place for the next one (TrackEval skips it the same way).
 
     Args:
-        cost: ``(T, G, P)`` cost of pairing true person ``g`` with prediction ``p`` at frame ``t``.
-        allowed: ``(T, G, P)`` bool, the pair may be matched (presence and threshold).
+        similarity: ``(T, G, P)`` similarity of true person ``g`` and prediction ``p`` at frame ``t``
+            (IoU, or another score in ``[0, 1]``).
+        true_present: ``(T, G)`` bool.
+        pred_present: ``(T, P)`` bool.
+        threshold: the similarity a pair needs.
     Returns:
         ``(T, G)`` int index of the matched prediction, -1 when unmatched.
     """
-    t_count, g_count, _ = cost.shape
+    t_count, g_count, _ = similarity.shape
+    eps = np.finfo(np.float64).eps
     matched = np.full((t_count, g_count), -1, dtype=np.int64)
-    for t in np.nonzero(allowed.any(axis=(1, 2)))[0]:
-        ok = allowed[t]
-        real = cost[t][ok]
-        # A forbidden pair costs more than all allowed pairs together, so Hungarian maximises the
-        # number of allowed matches first; forbidden pairs it still returns are dropped.
-        penalty = np.abs(real).sum() + 1.0
-        rows, cols = linear_sum_assignment(np.where(ok, cost[t], penalty))
-        keep = ok[rows, cols]
-        matched[t, rows[keep]] = cols[keep]
+    previous = np.full(g_count, -1, dtype=np.int64)  # match at the previous timestep that had both sides
+    for t in range(t_count):
+        gts, preds = np.nonzero(true_present[t])[0], np.nonzero(pred_present[t])[0]
+        if not len(gts) or not len(preds):
+            continue
+        sim = similarity[t][np.ix_(gts, preds)]
+        score = CONTINUATION_BONUS * (previous[gts][:, None] == preds[None, :]) + sim
+        score[sim < threshold - eps] = 0.0
+        rows, cols = linear_sum_assignment(-score)
+        keep = score[rows, cols] > eps
+        previous[:] = -1
+        previous[gts[rows[keep]]] = preds[cols[keep]]
+        matched[t] = previous
     return matched
 
 
 def associate_by_iou(true_boxes: np.ndarray, true_present: np.ndarray, pred_boxes: np.ndarray,
-                     pred_present: np.ndarray, min_iou: float = 0.5) -> np.ndarray:
-    """Per-frame association on box IoU.
+                     pred_present: np.ndarray, min_iou: float = SIMILARITY_THRESHOLD) -> np.ndarray:
+    """CLEAR-MOT association on box IoU (:func:`clear_mot_match`).
 
     Args:
         true_boxes: ``(G, T, 4)``.
@@ -94,13 +119,16 @@ def associate_by_iou(true_boxes: np.ndarray, true_present: np.ndarray, pred_boxe
         ``(G, T)`` int index of the matched prediction, -1 when unmatched.
     """
     iou = box_iou(true_boxes.transpose(1, 0, 2), pred_boxes.transpose(1, 0, 2))  # (T, G, P)
-    allowed = true_present.T[:, :, None] & pred_present.T[:, None, :] & (iou >= min_iou)
-    return match_frames(-iou, allowed).T
+    return clear_mot_match(iou, true_present.T, pred_present.T, min_iou).T
 
 
 def associate_by_distance(true_roots: np.ndarray, true_present: np.ndarray, pred_roots: np.ndarray,
                           pred_present: np.ndarray, max_distance: float = 0.5) -> np.ndarray:
-    """Per-frame association on 3D root distance (roots in a common frame, e.g. each frame's camera).
+    """CLEAR-MOT association on 3D root distance (roots in a common frame, e.g. each frame's camera).
+
+    The similarity is TrackEval's Euclidean one, ``max(0, 1 - d / zero_distance)`` with
+    ``zero_distance = 2 * max_distance``, so the 0.5 threshold admits pairs at most ``max_distance``
+    apart.
 
     Args:
         true_roots: ``(G, T, 3)`` metres.
@@ -113,8 +141,8 @@ def associate_by_distance(true_roots: np.ndarray, true_present: np.ndarray, pred
     """
     dist = np.linalg.norm(true_roots.transpose(1, 0, 2)[:, :, None] - pred_roots.transpose(1, 0, 2)[:, None],
                           axis=-1)  # (T, G, P)
-    allowed = true_present.T[:, :, None] & pred_present.T[:, None, :] & (dist <= max_distance)
-    return match_frames(dist, allowed).T
+    similarity = np.clip(1.0 - dist / (2.0 * max_distance), 0.0, None)
+    return clear_mot_match(similarity, true_present.T, pred_present.T).T
 
 
 @dataclass(frozen=True)
@@ -123,10 +151,14 @@ class IdSwitches:
 
     Attributes:
         switches: ``(G, T)`` bool, true person ``g`` switched identity at frame ``t``.
-        num_cuts: cuts in the sequence (for the per-cut figure).
+        spanned_cut: ``(G, T)`` int, for a switch, the index of the last cut between the frame it was
+            last matched and this one (the cut the wrong identity came through); -1 for a switch
+            within a shot, and wherever there is no switch.
+        num_cuts: cuts in the sequence.
     """
 
     switches: np.ndarray
+    spanned_cut: np.ndarray
     num_cuts: int
 
     @property
@@ -135,17 +167,46 @@ class IdSwitches:
 
     @property
     def per_cut(self) -> float:
-        """Switches divided by cuts; NaN for a single-shot sequence."""
+        """All switches divided by cuts; NaN for a single-shot sequence."""
         return self.total / self.num_cuts if self.num_cuts else float("nan")
 
+    @property
+    def at_cuts(self) -> list[int]:
+        """Switches through each cut, in cut order."""
+        return [int(((self.spanned_cut == c) & self.switches).sum()) for c in range(self.num_cuts)]
 
-def count_id_switches(matched: np.ndarray, pred_ids: np.ndarray | None = None, num_cuts: int = 0) -> IdSwitches:
+    @property
+    def within_shots(self) -> int:
+        """Switches whose gap since the last match spans no cut."""
+        return int((self.switches & (self.spanned_cut < 0)).sum())
+
+    def events(self, matched: np.ndarray, pred_ids: np.ndarray | None = None) -> list[dict[str, int]]:
+        """Every switch as ``{"frame", "true_person", "from_id", "to_id", "last_matched", "cut"}``.
+
+        Args:
+            matched: the ``(G, T)`` association the switches were counted from.
+            pred_ids: ``(P,)`` global id of every prediction index, as given to :func:`count_id_switches`.
+        Returns:
+            the switches in frame order; ``cut`` is the index of the cut spanned, -1 within a shot.
+        """
+        ids = np.arange(int(matched.max(initial=-1)) + 1) if pred_ids is None else np.asarray(pred_ids)
+        out = []
+        for g, t in sorted(zip(*np.nonzero(self.switches)), key=lambda gt: (gt[1], gt[0])):
+            before = np.nonzero(matched[g, :t] >= 0)[0][-1]
+            out.append({"frame": int(t), "true_person": int(g), "from_id": int(ids[matched[g, before]]),
+                        "to_id": int(ids[matched[g, t]]), "last_matched": int(before),
+                        "cut": int(self.spanned_cut[g, t])})
+        return out
+
+
+def count_id_switches(matched: np.ndarray, pred_ids: np.ndarray | None = None,
+                      cut_frames: np.ndarray | list[int] = ()) -> IdSwitches:
     """Count CLEAR-MOT switches from a per-frame association.
 
     Args:
         matched: ``(G, T)`` int index of the matched prediction, -1 when unmatched.
         pred_ids: ``(P,)`` global id of every prediction index; indices are ids when None.
-        num_cuts: cuts in the sequence.
+        cut_frames: ``(C,)`` first frame of every new shot.
     Returns:
         the switches.
     """
@@ -159,11 +220,17 @@ def count_id_switches(matched: np.ndarray, pred_ids: np.ndarray | None = None, n
         ids = table[np.where(matched >= 0, matched, len(table) - 1)]
     is_matched = matched >= 0
     g, t = matched.shape
-    # The last matched id so far, carried forward over unmatched frames.
+    # The last matched frame so far, carried forward over unmatched frames.
     last_index = np.where(is_matched, np.arange(t)[None, :], -1)
     last_index = np.maximum.accumulate(last_index, axis=1)
     previous = np.full((g, t), -1, dtype=np.int64)
     previous[:, 1:] = last_index[:, :-1]
     previous_id = np.take_along_axis(ids, np.clip(previous, 0, None), axis=1)
     switches = is_matched & (previous >= 0) & (previous_id != ids)
-    return IdSwitches(switches, int(num_cuts))
+    # Cut c lies in the gap (previous, t] when previous < cut_c <= t; the last such cut is the one whose
+    # shot the switch happens in.
+    cuts = np.sort(np.asarray(cut_frames, dtype=np.int64))
+    shot_now = np.searchsorted(cuts, np.arange(t), side="right")[None, :].repeat(g, axis=0)
+    shot_before = np.searchsorted(cuts, np.clip(previous, 0, None), side="right")
+    spanned = np.where(switches & (shot_now > shot_before), shot_now - 1, -1)
+    return IdSwitches(switches, spanned, len(cuts))

@@ -1,9 +1,12 @@
 """Pose metrics against ground truth (METRICS.md): W-MPJPE, WA-MPJPE, MPJPE, PA-MPJPE, MPVPE, Accel, FS.
 
 Inputs are numpy arrays in metres: joints ``(P, T, 24, 3)``, vertices ``(P, T, V, 3)``, ``valid (P, T)``
-(the frames to score). Every function returns :class:`Samples` in millimetres (Accel in mm/frame^2),
-so sequences pool frame-weighted. The functions do not choose the coordinate frame: the caller passes
-prediction and truth in a common one (:mod:`multithumbs.metrics.evaluate` says which).
+(the frames to score). Every function returns :class:`Samples` in millimetres, except :func:`accel`
+(m/s^2, the field's unit) and :func:`accel_world` (mm/frame^2), so sequences pool frame-weighted. Where
+the references (WHAM, GVHMR) mask invalid frames they drop them and treat the rest as consecutive;
+the chunked world errors, :func:`accel` and :func:`foot_sliding_against_truth` do the same. The
+functions do not choose the coordinate frame: the caller passes prediction and truth in a common one
+(:mod:`multithumbs.metrics.evaluate` says which).
 """
 
 from __future__ import annotations
@@ -14,9 +17,12 @@ import numpy as np
 
 from multithumbs.errors import InputError
 from multithumbs.metrics.alignment import (
-    MM_PER_M, Samples, apply_similarity, apply_track_similarities, fit_similarity, pelvis,
+    MM_PER_M, Samples, ValidFrames, apply_similarity, apply_track_similarities, fit_similarity, pelvis,
     track_similarities, window_mask,
 )
+
+WORLD_CHUNK = 100
+"""Valid frames per re-alignment chunk of the headline W-MPJPE / WA-MPJPE (WHAM/GVHMR's "100")."""
 
 
 def _check_pair(pred: np.ndarray, true: np.ndarray, valid: np.ndarray) -> None:
@@ -103,39 +109,42 @@ def world_aligned(pred_joints: np.ndarray, true_joints: np.ndarray, valid: np.nd
         valid: ``(P, T)`` bool, frames the fit may use.
         first_two: fit on the first two valid frames of each track/chunk (W-MPJPE) instead of all
             of them (WA-MPJPE).
-        chunk: re-align every ``chunk`` frames; None for the whole track.
+        chunk: re-align every ``chunk`` valid frames (compressed, as WHAM/GVHMR); None for the whole track.
     Returns:
         ``(P, T, 24, 3)`` aligned predicted joints.
     """
     _check_pair(pred_joints, true_joints, valid)
     sim, _ = track_similarities(pred_joints, true_joints, valid, "first_two" if first_two else "all", chunk)
-    return apply_track_similarities(sim, pred_joints, chunk)
+    return apply_track_similarities(sim, pred_joints, valid, chunk)
 
 
 def w_mpjpe(pred_joints: np.ndarray, true_joints: np.ndarray, valid: np.ndarray,
-            chunk: int | None = None) -> Samples:
-    """World MPJPE with first-frames alignment, mm (WHAM/GVHMR W-MPJPE; ``chunk=100`` is W-MPJPE100).
+            chunk: int | None = WORLD_CHUNK) -> Samples:
+    """World MPJPE with first-frames alignment, mm: WHAM/GVHMR's W-MPJPE100 by default.
 
-    Per person (and chunk): Sim(3) fitted on the joints of the first two valid frames together,
-    applied to the whole track (chunk), then the mean joint error of every valid frame.
+    Per person, its valid frames in order (compressed) are cut into chunks of ``chunk`` frames, the last
+    one shorter; each chunk gets the Sim(3) fitted on the joints of its first two frames together
+    (2 x 24 points), then every frame's mean joint error. ``chunk=None`` is one chunk for the whole
+    track (``w_mpjpe_track``, stricter across cuts).
 
     Args:
         pred_joints: ``(P, T, 24, 3)`` predicted world joints.
         true_joints: ``(P, T, 24, 3)`` true world joints.
         valid: ``(P, T)`` bool, frames to score (and to fit on).
-        chunk: frames per re-alignment window, or None for the whole track.
+        chunk: valid frames per re-alignment chunk, or None for the whole track.
     Returns:
-        ``(P, T)`` samples.
+        ``(P, T)`` samples at the original frames.
     """
     aligned = world_aligned(pred_joints, true_joints, valid, first_two=True, chunk=chunk)
     return _point_error(aligned, true_joints, valid)
 
 
 def wa_mpjpe(pred_joints: np.ndarray, true_joints: np.ndarray, valid: np.ndarray,
-             chunk: int | None = None) -> Samples:
-    """World MPJPE with whole-track alignment, mm: the Sim(3) is fitted on all valid frames (of the chunk).
+             chunk: int | None = WORLD_CHUNK) -> Samples:
+    """World MPJPE with whole-chunk alignment, mm: WHAM/GVHMR's WA-MPJPE100 by default.
 
-    Args and returns as :func:`w_mpjpe`.
+    As :func:`w_mpjpe`, but each chunk's Sim(3) is fitted on all of its frames; ``chunk=None`` gives
+    ``wa_mpjpe_track``.
     """
     aligned = world_aligned(pred_joints, true_joints, valid, first_two=False, chunk=chunk)
     return _point_error(aligned, true_joints, valid)
@@ -146,16 +155,48 @@ def acceleration(points: np.ndarray) -> np.ndarray:
     return points[:, :-2] - 2.0 * points[:, 1:-1] + points[:, 2:]
 
 
-def accel_error(pred_joints: np.ndarray, true_joints: np.ndarray, valid: np.ndarray,
-                cut_frames: Sequence[int] | np.ndarray = (), include_cuts: bool = True) -> Samples:
-    """Acceleration error per triplet, mm/frame^2: mean over joints of ``||a_pred - a_true||``.
+def accel(pred_joints_cam: np.ndarray, true_joints_cam: np.ndarray, valid: np.ndarray, fps: float) -> Samples:
+    """Acceleration error as WHAM/GVHMR report it, m/s^2: pelvis-aligned camera-frame joints.
+
+    Per person, the valid frames in order (compressed, as the references' masking does); every
+    triplet of consecutive compressed frames gives ``mean_j ||a_pred - a_true|| * fps^2`` with
+    ``a_t = x_{t-1} - 2 x_t + x_{t+1}``.
 
     Args:
-        pred_joints: ``(P, T, 24, 3)`` world joints (aligned to the truth's frame by the caller).
+        pred_joints_cam: ``(P, T, 24, 3)`` predicted joints in each frame's predicted camera.
+        true_joints_cam: ``(P, T, 24, 3)`` true joints in each frame's true camera.
+        valid: ``(P, T)`` bool, frames to use.
+        fps: frames per second.
+    Returns:
+        ``(P, T - 2)`` samples over packed triplets (their order is not the video's).
+    """
+    _check_pair(pred_joints_cam, true_joints_cam, valid)
+    if not fps > 0:
+        raise InputError(f"fps: must be positive, got {fps}")
+    packing = ValidFrames.of(valid)
+    pred = packing.pack(pred_joints_cam - pelvis(pred_joints_cam)[..., None, :])
+    true = packing.pack(true_joints_cam - pelvis(true_joints_cam)[..., None, :])
+    mask = window_mask(packing.valid, 3)
+    if not mask.shape[-1]:
+        return Samples(np.zeros(mask.shape), mask)
+    diff = acceleration(pred) - acceleration(true)
+    return Samples(np.linalg.norm(diff, axis=-1).mean(axis=-1) * fps ** 2, mask)
+
+
+def accel_world(pred_joints: np.ndarray, true_joints: np.ndarray, valid: np.ndarray,
+                cut_frames: Sequence[int] | np.ndarray = (), include_cuts: bool = True) -> Samples:
+    """Acceleration error of world joints, mm/frame^2: this project's ``accel_world``, not the field's Accel.
+
+    Triplets of three consecutive valid frames (not compressed), by default also those that span a cut:
+    that is where methods that ignore cuts fail.
+
+    Args:
+        pred_joints: ``(P, T, 24, 3)`` world joints (aligned to the truth's frame by the caller, e.g.
+            with the whole-track WA similarity).
         true_joints: ``(P, T, 24, 3)``.
         valid: ``(P, T)`` bool; a triplet counts when its three frames are valid.
         cut_frames: ``(C,)`` first frame of each new shot.
-        include_cuts: count triplets that span a cut (where cut-blind methods fail).
+        include_cuts: count triplets that span a cut.
     Returns:
         ``(P, T - 2)`` samples; sample ``i`` is the triplet centred on frame ``i + 1``.
     """
@@ -168,24 +209,25 @@ def accel_error(pred_joints: np.ndarray, true_joints: np.ndarray, valid: np.ndar
 
 
 def foot_sliding_against_truth(pred_feet: np.ndarray, true_feet: np.ndarray, valid: np.ndarray,
-                               cut_frames: Sequence[int] | np.ndarray = (),
                                contact_speed: float = 0.01) -> Samples:
-    """Foot sliding with ground truth (WHAM/GVHMR), mm: predicted foot displacement where the true foot rests.
+    """Foot sliding with ground truth (GVHMR ``compute_foot_sliding``), mm.
 
-    Contact: the true foot point moves less than ``contact_speed`` metres between two consecutive
-    valid frames of one shot; the sample is the predicted displacement of that point over that pair.
+    Per person, the valid frames in order (compressed); a foot point is in contact over a pair of
+    consecutive compressed frames when its TRUE position moves less than ``contact_speed`` metres; the
+    sample is the displacement of the PREDICTED point, as predicted (not aligned), over that pair.
+    Pairs across a cut are kept, as GVHMR keeps every pair.
 
     Args:
-        pred_feet: ``(P, T, F, 3)`` predicted foot points (world, aligned to the truth's frame).
+        pred_feet: ``(P, T, F, 3)`` predicted foot points in the prediction's world frame.
         true_feet: ``(P, T, F, 3)`` true foot points.
         valid: ``(P, T)`` bool.
-        cut_frames: ``(C,)``; pairs across a cut are excluded.
         contact_speed: metres per frame under which the true point is in contact.
     Returns:
-        ``(P, T - 1, F)`` samples, one per foot point and frame pair.
+        ``(P, T - 1, F)`` samples over packed pairs, one per foot point.
     """
     _check_pair(pred_feet, true_feet, valid)
-    pairs = window_mask(valid, 2, cut_frames, include_cuts=False)  # (P, T-1)
-    true_step = np.linalg.norm(np.diff(true_feet, axis=1), axis=-1)  # (P, T-1, F)
-    pred_step = np.linalg.norm(np.diff(pred_feet, axis=1), axis=-1)
+    packing = ValidFrames.of(valid)
+    pairs = window_mask(packing.valid, 2)  # (P, T-1)
+    true_step = np.linalg.norm(np.diff(packing.pack(true_feet), axis=1), axis=-1)  # (P, T-1, F)
+    pred_step = np.linalg.norm(np.diff(packing.pack(pred_feet), axis=1), axis=-1)
     return Samples(pred_step * MM_PER_M, pairs[..., None] & (true_step < contact_speed))

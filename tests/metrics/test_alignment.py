@@ -4,7 +4,7 @@ import pytest
 from multithumbs.errors import InputError
 from multithumbs.metrics.alignment import (
     Samples, apply_similarity, apply_track_similarities, fit_similarity, pair_people, pelvis,
-    track_similarities, window_mask,
+    ValidFrames, track_similarities, window_mask,
 )
 from tests.metrics.conftest import random_similarity
 
@@ -56,11 +56,11 @@ def test_track_similarities_first_two_uses_only_first_two_valid_frames():
     pred[0, 4:] += 5.0  # later frames disagree: the first-two fit must not see them
     valid = np.array([[False, True, True, True, True, True]])
     fitted_sim, fitted = track_similarities(pred, true, valid, "first_two")
-    aligned = apply_track_similarities(fitted_sim, pred)
+    aligned = apply_track_similarities(fitted_sim, pred, valid)
     np.testing.assert_allclose(aligned[0, 1:4], true[0, 1:4], atol=1e-9)
     # The whole-track fit spreads the disagreement over every frame.
     all_sim, _ = track_similarities(pred, true, valid, "all")
-    assert np.abs(apply_track_similarities(all_sim, pred)[0, 1] - true[0, 1]).max() > 1e-3
+    assert np.abs(apply_track_similarities(all_sim, pred, valid)[0, 1] - true[0, 1]).max() > 1e-3
     assert fitted.shape == (1, 1)
 
 
@@ -73,9 +73,33 @@ def test_track_similarities_chunks():
     valid = np.ones((2, 25), bool)
     sim, fitted = track_similarities(pred, true, valid, "all", chunk=10)
     assert fitted.shape == (2, 3)
-    np.testing.assert_allclose(apply_track_similarities(sim, pred, chunk=10), true, atol=1e-9)
+    np.testing.assert_allclose(apply_track_similarities(sim, pred, valid, chunk=10), true, atol=1e-9)
     with pytest.raises(InputError, match="chunk"):
         track_similarities(pred, true, valid, "all", chunk=0)
+
+
+def test_track_similarities_chunk_the_valid_frames_not_the_frame_axis():
+    # Frames 3-6 missing: the 10-frame chunks hold frames 0-2, 7-13 and 14-19 (compressed).
+    rng = np.random.default_rng(5)
+    true = rng.normal(size=(1, 20, 4, 3))
+    valid = np.ones((1, 20), bool)
+    valid[0, 3:7] = False
+    pred = true.copy()
+    pred[0, 14:] += 1.0
+    sim, fitted = track_similarities(pred, true, valid, "all", chunk=10)
+    assert fitted.tolist() == [[True, True]]
+    aligned = apply_track_similarities(sim, pred, valid, chunk=10)
+    np.testing.assert_allclose(aligned[valid], true[valid], atol=1e-9)
+
+
+def test_valid_frames_pack_and_unpack():
+    valid = np.array([[True, False, True, True], [False, False, True, False]])
+    packing = ValidFrames.of(valid)
+    assert packing.valid.tolist() == [[True, True, True, False], [True, False, False, False]]
+    assert packing.frames.tolist() == [[0, 2, 3, -1], [2, -1, -1, -1]]
+    series = np.arange(8.0).reshape(2, 4, 1)
+    assert packing.pack(series)[..., 0].tolist() == [[0, 2, 3, 1], [6, 4, 5, 7]]
+    np.testing.assert_array_equal(packing.unpack(packing.pack(series)), series)
 
 
 def test_window_mask_with_and_without_cuts():
@@ -84,6 +108,11 @@ def test_window_mask_with_and_without_cuts():
     # Cut at frame 2: windows [0..2] and [1..3] span it.
     np.testing.assert_array_equal(window_mask(valid, 3, [2], include_cuts=False), [0, 0, 0, 0, 0, 1])
     np.testing.assert_array_equal(window_mask(valid, 2, [6], include_cuts=False), [1, 1, 1, 0, 0, 0, 1])
+    # Packed entries: the video frame of each entry decides the shot.
+    frames = np.array([0, 1, 2, 3, 5, 6, 7, -1])
+    packed = np.array([True] * 7 + [False])
+    np.testing.assert_array_equal(window_mask(packed, 2, [5], include_cuts=False, frames=frames),
+                                  [1, 1, 1, 0, 1, 1, 0])
     assert window_mask(valid[:2], 3).shape == (0,)
 
 

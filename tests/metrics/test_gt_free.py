@@ -6,6 +6,7 @@ from multithumbs.geometry import axis_angle_to_matrix, intrinsics_from_fov, look
 from multithumbs.metrics.gt_free import (
     FOOT_JOINTS, SMPL_FOOT_VERTICES, cross_shot_pck, estimate_up, foot_points, foot_sliding, jitter,
 )
+from tests.metrics import reference
 from tests.metrics.conftest import SKELETON
 
 
@@ -23,12 +24,25 @@ def test_jitter_zero_for_constant_velocity_and_hand_computed_for_a_cubic():
         jitter(cubic, valid, fps=0.0)
 
 
-def test_jitter_windows_need_four_valid_frames_and_respect_cuts():
-    joints = np.random.default_rng(0).normal(size=(1, 10, 24, 3))
+def test_jitter_runs_over_compressed_valid_frames_hand_computed():
+    # x = c t^3 (frame index t), frame 5 missing: compressed frames 0 1 2 3 4 6 7 8 9, windows start at
+    # packed positions 0..5. Third differences of t^3 over (0,1,2,3), (1,2,3,4) are 6; over (2,3,4,6)
+    # 216 - 3*64 + 3*27 - 8 = 97; over (3,4,6,7) 343 - 648 + 192 - 27 = -140; over (4,6,7,8)
+    # 512 - 1029 + 648 - 64 = 67; over (6,7,8,9) 6.
+    c, fps = 0.001, 30.0
+    t = np.arange(10.0)
+    joints = np.zeros((1, 10, 24, 3))
+    joints[0, :, :, 2] = c * t[:, None] ** 3
     valid = np.ones((1, 10), bool)
     valid[0, 5] = False
-    assert jitter(joints, valid, 30.0).count == 3  # starts 0, 1 and 6
-    assert jitter(joints, valid, 30.0, cut_frames=[3], include_cuts=False).count == 1  # start 6
+    samples = jitter(joints, valid, fps)
+    expected = np.array([6.0, 6.0, 97.0, 140.0, 67.0, 6.0]) * c * fps ** 3 / 10.0
+    np.testing.assert_allclose(np.sort(samples.scored), np.sort(expected), rtol=1e-12)
+    np.testing.assert_allclose(np.sort(samples.scored), np.sort(reference.jitter_values(joints, valid, fps)),
+                               rtol=1e-12)
+    # Windows whose first and last frames lie in different shots are left out on request: with a cut
+    # at frame 3 the windows starting at packed 0, 1 and 2 (frames 0-3, 1-4, 2-6) span it.
+    assert jitter(joints, valid, fps, cut_frames=[3], include_cuts=False).count == 3
 
 
 def _pck_scene(rng):
