@@ -94,6 +94,9 @@ class Shots(_Checked):
         num_frames: ``T``, frames in the video.
         scores: ``(T,)`` per-frame detector score (0 where the detector gives none).
         source: which detector produced the cuts (``"scenedetect:adaptive"``, ``"ground_truth"``...).
+        outlier_frames: ``(F,)`` int, strictly increasing in ``[0, T)``: one-frame outliers (a glitched
+            or flashed frame unlike both neighbours) the detector was shown a neighbour in place of;
+            boundary frames avoid them. Empty when none were found or looked for (given cuts).
     """
 
     cut_frames: np.ndarray
@@ -101,8 +104,9 @@ class Shots(_Checked):
     num_frames: int
     scores: np.ndarray
     source: str = "unknown"
+    outlier_frames: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
-    SPEC = {"cut_frames": (("C",), "i"), "scores": (("T",), "f")}
+    SPEC = {"cut_frames": (("C",), "i"), "scores": (("T",), "f"), "outlier_frames": (("F",), "i")}
 
     def _check_extra(self, sizes: dict[str, int]) -> None:
         if self.num_frames < 1:
@@ -113,6 +117,10 @@ class Shots(_Checked):
         if cuts.size and (np.any(np.diff(cuts) <= 0) or cuts[0] <= 0 or cuts[-1] >= self.num_frames):
             raise InputError(f"Shots.cut_frames: cuts must increase strictly inside (0, {self.num_frames}), "
                              f"got {cuts.tolist()}")
+        odd = self.outlier_frames
+        if odd.size and (np.any(np.diff(odd) <= 0) or odd[0] < 0 or odd[-1] >= self.num_frames):
+            raise InputError(f"Shots.outlier_frames: frames must increase strictly inside [0, {self.num_frames}), "
+                             f"got {odd.tolist()}")
         if not self.fps > 0:
             raise InputError(f"Shots.fps: must be positive, got {self.fps}")
 

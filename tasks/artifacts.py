@@ -18,7 +18,7 @@ from storage.codecs import decode, encode
 from storage.keys import artifact_key
 from storage.store import ArtifactRef, ArtifactStore, CorruptArtifact
 
-STAGE_VERSIONS = {"simulate_inputs": 1, "ground_truth": 1, "shots": 1, "perception": 1, "trajectory": 1, "space": 1,
+STAGE_VERSIONS = {"simulate_inputs": 1, "ground_truth": 1, "shots": 2, "perception": 1, "trajectory": 1, "space": 1,
                   "align": 3, "propagate": 2, "reid": 1, "post": 1}
 """Bump a stage's version when its code changes its output: its key and every key after it change."""
 

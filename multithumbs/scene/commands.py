@@ -62,6 +62,7 @@ def register(app: typer.Typer) -> None:
         if as_json:
             print(json.dumps({"video": str(video), "detector": shots.source, "fps": shots.fps,
                               "num_frames": shots.num_frames, "cut_frames": shots.cut_frames.tolist(),
+                              "outlier_frames": shots.outlier_frames.tolist(),
                               "scores": [round(float(s), 4) for s in shots.scores]}))
             return
         Console().print(f"{video}: {shots.num_frames} frames at {shots.fps:g} fps, {shots.num_shots} shots, "

@@ -81,13 +81,14 @@ def scene_geometry(frames: np.ndarray, shots: Shots, K: np.ndarray, person_masks
 def cut_frames_needed(shots: Shots, cut_index: int, both_static: bool, neighbour_frames: int = 2) -> list[int]:
     """Video frames the shared space at a cut is built from: the boundary pair (:func:`boundary_frames`),
     then, when both shots' cameras are static, up to ``neighbour_frames`` more on each side (the
-    ``neighbour_frames`` fallback), nearest first."""
+    ``neighbour_frames`` fallback), nearest first; outlier frames (``shots.outlier_frames``) are skipped."""
     pair = boundary_frames(shots, cut_index)
     needed = [pair.before, pair.after]
     if both_static and neighbour_frames > 0:
         lo, hi = shots.ranges[cut_index][0], shots.ranges[cut_index + 1][1]
-        needed += [f for f in range(pair.before - 1, pair.before - 1 - neighbour_frames, -1) if f >= lo]
-        needed += [f for f in range(pair.after + 1, pair.after + 1 + neighbour_frames) if f < hi]
+        odd = set(shots.outlier_frames.tolist())
+        needed += [f for f in range(pair.before - 1, lo - 1, -1) if f not in odd][:neighbour_frames]
+        needed += [f for f in range(pair.after + 1, hi) if f not in odd][:neighbour_frames]
     return needed
 
 
