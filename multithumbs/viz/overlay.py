@@ -25,6 +25,7 @@ from multithumbs.geometry import vertex_normals
 from multithumbs.synth.render import Lighting, rasterize
 from multithumbs.types import GroundTruth, WorldResult
 from multithumbs.video import iter_frames
+from multithumbs.viz.labels import draw_label
 from multithumbs.viz.palette import id_color, id_color_u8
 
 HEADLIGHT = Lighting(direction=(0.0, -0.5, -1.0), ambient=0.35, diffuse=0.7)
@@ -134,8 +135,7 @@ def render_world_frame(world: WorldResult, frame: int, body) -> tuple[np.ndarray
 
 
 def _text(image: np.ndarray, text: str, org: tuple[int, int], scale: float, color=(255, 255, 255)) -> None:
-    cv2.putText(image, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), max(2, int(3 * scale)), cv2.LINE_AA)
-    cv2.putText(image, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, color, max(1, int(scale)), cv2.LINE_AA)
+    draw_label(image, text, org, scale, color)
 
 
 def annotate(image: np.ndarray, world: WorldResult, frame: int, ids: np.ndarray, layer: PeopleLayer,
