@@ -155,7 +155,7 @@ def annotate(image: np.ndarray, world: WorldResult, frame: int, ids: np.ndarray,
     Args:
         ids: ``(N,)`` global ids of the rendered people (the labels' text).
         colors: optional ``(N, 3)`` float RGB of the labels, one per rendered person (default: id colours).
-        legend: optional line under the header saying what the colours mean.
+        legend: optional line above the timeline saying what the colours mean.
     """
     h, w = image.shape[:2]
     scale = max(0.35, min(1.0, w / 1100))
@@ -164,7 +164,8 @@ def annotate(image: np.ndarray, world: WorldResult, frame: int, ids: np.ndarray,
     header = f"{title + '  ' if title else ''}frame {frame}  shot {shot}"
     _text(image, header, (8, int(22 * scale + 6)), scale)
     if legend:
-        _text(image, legend, (8, int(44 * scale + 8)), scale * 0.75)
+        # Just above the timeline: the person labels sit over heads, near the top, where it would collide.
+        _text(image, legend, (8, h - 18), scale * 0.75)
     for i, (gid, (u, v)) in enumerate(zip(ids, layer.anchors)):
         if np.isfinite(u) and -20 < u < w + 20 and -20 < v < h:
             rgb = id_color(int(gid)) if colors is None else np.asarray(colors[i], np.float64)
@@ -199,7 +200,8 @@ def overlay_image(frame_rgb: np.ndarray, world: WorldResult, frame: int, body, t
     ids, layer = render_world_frame(world, frame, body, colors)
     image = composite(frame_rgb, layer, opacity)
     shown = None if colors is None else np.asarray(colors)[np.nonzero(world.valid[:, frame])[0]]
-    legend = "" if colouring is None else colouring.legend
+    # The labels keep the result's own ids, which now differ from their colour's truth id: say so.
+    legend = colouring.legend + " (labels: result ids)" if colouring is not None and colouring.legend else ""
     return annotate(image, world, frame, ids, layer, title, shown, legend), ids, layer
 
 
