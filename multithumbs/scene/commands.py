@@ -34,6 +34,45 @@ def _read_image(path: Path):
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
+FAILED_EXIT_CODE = 2
+"""Exit code of ``two-view`` when no geometry could be estimated (the same code as an input error: the
+images do not allow what was asked)."""
+
+
+def two_view_status(path: str, num_matches: int, num_inliers: int, min_inliers: int) -> tuple[str, bool]:
+    """What a ``two-view`` result means, in one line: ``(status, estimated)``.
+
+    Parameters
+    ----------
+    path : str
+        The path that ran (``SharedSpace.fallback``, ``"two_view"`` when none did).
+    num_matches, num_inliers : int
+        Feature matches between the images and inliers of the relative pose.
+    min_inliers : int
+        The fewest inliers the estimator trusts (``TwoViewConfig.min_inliers``).
+
+    Returns
+    -------
+    status : str
+        ``"ok"`` for a relative pose with scene points; ``"partial: ..."`` for a rotation without
+        translation; ``"failed: <why>"`` when nothing was estimated (the identity pose in the output is
+        then a placeholder, not a measurement).
+    estimated : bool
+        False exactly when the status is ``"failed: ..."``.
+    """
+    if path == "rotation_only":
+        return ("partial: rotation only (too little parallax for a translation; no scene points triangulated)",
+                True)
+    if path == "human_only" or num_inliers == 0:
+        if num_matches < min_inliers:
+            why = f"only {num_matches} feature matches between the images (need at least {min_inliers})"
+        else:
+            why = (f"{num_matches} feature matches but fewer than {min_inliers} agree on one relative pose "
+                   "(unrelated images, or a degenerate view pair)")
+        return f"failed: {why}; the reported pose is a placeholder (identity)", False
+    return "ok", True
+
+
 def register(app: typer.Typer) -> None:
     """Add ``shots`` and ``two-view`` to the app."""
 
@@ -84,7 +123,7 @@ def register(app: typer.Typer) -> None:
         from rich.console import Console
 
         from multithumbs.geometry import intrinsics as make_intrinsics
-        from multithumbs.scene.two_view import default_intrinsics, estimate_two_view
+        from multithumbs.scene.two_view import TwoViewConfig, default_intrinsics, estimate_two_view
 
         a, b = _read_image(image_a), _read_image(image_b)
         if a.shape != b.shape:
@@ -97,20 +136,33 @@ def register(app: typer.Typer) -> None:
             if mask is not None and mask.shape != a.shape[:2]:
                 raise InputError(f"{path}: mask size {mask.shape[1]}x{mask.shape[0]} differs from the images'")
             masks.append(mask)
-        result = estimate_two_view(a, b, K, masks[0], masks[1])
+        config = TwoViewConfig()
+        result = estimate_two_view(a, b, K, masks[0], masks[1], config=config)
         space = result.space
         R = space.R[1] @ space.R[0].T
         t = space.t[1] - R @ space.t[0]
         norm = float(np.linalg.norm(t))
         direction = (t / norm).tolist() if norm > 0 else [0.0, 0.0, 0.0]
         angle = float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))))
-        out = {"rotation": R.tolist(), "rotation_angle_deg": angle, "translation_direction": direction,
-               "num_matches": result.num_matches, "num_inliers": result.num_inliers,
-               "num_triangulated": result.num_triangulated, "path": space.fallback or "two_view",
+        route = space.fallback or "two_view"
+        status, estimated = two_view_status(route, result.num_matches, result.num_inliers, config.min_inliers)
+        out = {"status": status, "rotation": R.tolist(), "rotation_angle_deg": angle,
+               "translation_direction": direction, "num_matches": result.num_matches,
+               "num_inliers": result.num_inliers, "num_triangulated": result.num_triangulated, "path": route,
                "intrinsics": K.tolist()}
+        if status != "ok":
+            # stderr, in both modes: the JSON on stdout stays parseable and a script's user still sees it.
+            Console(stderr=True).print(f"warning: {image_a.name} / {image_b.name}: {status}", style="yellow",
+                                       markup=False, highlight=False)
         if as_json:
             print(json.dumps(out))
-            return
-        Console().print(f"path {out['path']}: rotation {angle:.2f} deg, translation direction "
-                        f"{np.round(direction, 3).tolist()}, {result.num_inliers} inliers of {result.num_matches} "
-                        f"matches, {result.num_triangulated} triangulated points")
+        elif not estimated:
+            Console().print(f"path {route}: no relative pose estimated ({result.num_inliers} inliers of "
+                            f"{result.num_matches} matches)", markup=False)
+        else:
+            Console().print(f"path {route}: rotation {angle:.2f} deg, translation direction "
+                            f"{np.round(direction, 3).tolist()}, {result.num_inliers} inliers of "
+                            f"{result.num_matches} matches, {result.num_triangulated} triangulated points",
+                            markup=False)
+        if not estimated:
+            raise SystemExit(FAILED_EXIT_CODE)

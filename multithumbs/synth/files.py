@@ -12,6 +12,7 @@ import numpy as np
 from multithumbs.errors import InputError
 from multithumbs.io import make_output_dir, publish, save_ground_truth
 from multithumbs.synth.scene import SyntheticVideo
+from multithumbs.viz.labels import draw_label
 
 OUTPUT_NAMES = ("video.mp4", "ground_truth.npz", "contact_sheet.png")
 
@@ -70,9 +71,7 @@ def contact_sheet(video: SyntheticVideo, per_shot: int = 3, tile_width: int = 32
             tile = cv2.resize(frames[f], (tile_width, tile_h), interpolation=cv2.INTER_AREA)
             border = (220, 30, 30) if f == b - 1 and b < t else (30, 90, 230) if f == a and a > 0 else (255, 255, 255)
             tile = cv2.copyMakeBorder(tile, 3, 3, 3, 3, cv2.BORDER_CONSTANT, value=border)
-            label = f"shot {shot}  frame {f}"
-            cv2.putText(tile, label, (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 3, cv2.LINE_AA)
-            cv2.putText(tile, label, (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+            draw_label(tile, f"shot {shot}  frame {f}", (8, 20), 0.5)
             tiles.append(tile)
         while len(tiles) < per_shot:
             tiles.append(np.full_like(tiles[0], 255))

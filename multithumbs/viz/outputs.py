@@ -131,7 +131,8 @@ def write_video_outputs(out_dir: str | Path, result: WorldResult, video_path: st
         out_dir: output folder (created if missing).
         result: the reconstruction.
         video_path: the input video (its frames are the result's frames).
-        truth: optional ground truth (truth panel in the overlay, dashed truth in the top-down plot).
+        truth: optional ground truth (truth panel in the overlay, dashed truth in the top-down plot; the
+            result is then coloured by the paired truth person, :mod:`multithumbs.viz.pairing`).
         metrics: optional metrics for the report (e.g. :func:`multithumbs.metrics.evaluate.evaluate`).
         run_info: optional backends, fallbacks and stage timings for the report (:mod:`multithumbs.viz.report`).
         scene_points: optional scene points of each cut in the WORLD frame (``SharedSpace.points`` mapped
@@ -184,21 +185,28 @@ def write_video_outputs(out_dir: str | Path, result: WorldResult, video_path: st
     else:
         vertices, joints = None, posed_joints(result, body)
     up = world_up(result, joints)
+    true_joints = colouring = None
+    if truth is not None and {"overlay", "trajectory"} & set(include):
+        from multithumbs.viz.pairing import colouring_for
+
+        # One pairing for every picture: the overlay and the plot colour each person alike.
+        true_joints = posed_joints(truth.world, body)
+        colouring = colouring_for(result, joints, truth, true_joints)
     timings["posing"] = time.perf_counter() - start
 
     if "overlay" in include:
         start = stage("overlay")
         from multithumbs.viz.overlay import write_overlay_video
 
-        written["overlay"] = write_overlay_video(out / plan["overlay"], result, video_path, body, truth)
+        written["overlay"] = write_overlay_video(out / plan["overlay"], result, video_path, body, truth,
+                                                 colouring=colouring)
         timings["overlay"] = time.perf_counter() - start
     if "trajectory" in include:
         start = stage("trajectory")
         from multithumbs.viz.plots import write_trajectory_plot
 
-        true_joints = posed_joints(truth.world, body) if truth is not None else None
         pics = write_trajectory_plot(out / "trajectory", result, joints, truth, true_joints,
-                                     title=title or video_path.name)
+                                     title=title or video_path.name, colouring=colouring)
         written.update(trajectory_png=pics["png"], trajectory_svg=pics["svg"])
         timings["trajectory"] = time.perf_counter() - start
     if "smpl" in include:

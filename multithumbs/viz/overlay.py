@@ -5,7 +5,10 @@ the synthetic world's z-buffer (:func:`multithumbs.synth.render.rasterize`) with
 shaded by a headlight in the camera frame (so the picture does not depend on the world's up axis) and
 blended over the frame. Each frame shows its index and shot, a timeline with the cuts, a ``CUT`` badge
 and red border on the first frames after a cut, and ``#id`` labels; with ground truth the truth is drawn
-the same way in a second panel on the right (ids coloured by the true ids).
+the same way in a second panel on the right (coloured by the true ids), and the result's people are
+coloured by the truth person the evaluation paired them with (:mod:`multithumbs.viz.pairing`: a mere
+relabelling of ids looks the same in both panels, a real identity switch at a cut shows as a person
+changing colour at the cut); the ``#id`` labels stay the result's own ids.
 """
 
 from __future__ import annotations
@@ -25,7 +28,9 @@ from multithumbs.geometry import vertex_normals
 from multithumbs.synth.render import Lighting, rasterize
 from multithumbs.types import GroundTruth, WorldResult
 from multithumbs.video import iter_frames
-from multithumbs.viz.palette import id_color, id_color_u8
+from multithumbs.viz.labels import draw_label
+from multithumbs.viz.pairing import TruthColouring, colouring_for
+from multithumbs.viz.palette import id_color
 
 HEADLIGHT = Lighting(direction=(0.0, -0.5, -1.0), ambient=0.35, diffuse=0.7)
 """Shading of overlaid meshes, with the light direction in the CAMERA frame: from the camera, a little
@@ -119,37 +124,53 @@ def pose_frame(world: WorldResult, frame: int, body) -> tuple[np.ndarray, np.nda
     return rows, out.vertices.detach().cpu().double().numpy()
 
 
-def render_world_frame(world: WorldResult, frame: int, body) -> tuple[np.ndarray, PeopleLayer]:
+def render_world_frame(world: WorldResult, frame: int, body,
+                       colors: np.ndarray | None = None) -> tuple[np.ndarray, PeopleLayer]:
     """Render the valid people of ``world`` at ``frame`` through that frame's camera.
 
+    Args:
+        colors: optional ``(P, 3)`` float RGB per person of ``world`` (default: the id colours).
     Returns:
         ``ids (N,)`` the global ids of the rendered people (``layer.person`` indexes them) and the layer.
     """
     rows, vertices = pose_frame(world, frame, body)
     ids = np.asarray(world.person_ids)[rows]
-    colors = np.stack([id_color(i) for i in ids]) if ids.size else np.zeros((0, 3))
+    if colors is not None:
+        colors = np.asarray(colors, np.float64).reshape(world.num_people, 3)[rows]
+    else:
+        colors = np.stack([id_color(i) for i in ids]) if ids.size else np.zeros((0, 3))
     layer = render_people(vertices, body.faces, colors, world.K[frame], world.R[frame], world.t[frame],
                           world.image_size)
     return ids, layer
 
 
 def _text(image: np.ndarray, text: str, org: tuple[int, int], scale: float, color=(255, 255, 255)) -> None:
-    cv2.putText(image, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), max(2, int(3 * scale)), cv2.LINE_AA)
-    cv2.putText(image, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, color, max(1, int(scale)), cv2.LINE_AA)
+    draw_label(image, text, org, scale, color)
 
 
 def annotate(image: np.ndarray, world: WorldResult, frame: int, ids: np.ndarray, layer: PeopleLayer,
-             title: str = "") -> np.ndarray:
-    """Draw the frame/shot header, the cut timeline, the cut badge and person labels on ``image`` (in place)."""
+             title: str = "", colors: np.ndarray | None = None, legend: str = "") -> np.ndarray:
+    """Draw the frame/shot header, the cut timeline, the cut badge and person labels on ``image`` (in place).
+
+    Args:
+        ids: ``(N,)`` global ids of the rendered people (the labels' text).
+        colors: optional ``(N, 3)`` float RGB of the labels, one per rendered person (default: id colours).
+        legend: optional line above the timeline saying what the colours mean.
+    """
     h, w = image.shape[:2]
     scale = max(0.35, min(1.0, w / 1100))
     cuts = np.asarray(world.cut_frames)
     shot = int(np.searchsorted(cuts, frame, side="right"))
     header = f"{title + '  ' if title else ''}frame {frame}  shot {shot}"
     _text(image, header, (8, int(22 * scale + 6)), scale)
-    for gid, (u, v) in zip(ids, layer.anchors):
+    if legend:
+        # Just above the timeline: the person labels sit over heads, near the top, where it would collide.
+        _text(image, legend, (8, h - 18), scale * 0.75)
+    for i, (gid, (u, v)) in enumerate(zip(ids, layer.anchors)):
         if np.isfinite(u) and -20 < u < w + 20 and -20 < v < h:
-            _text(image, f"#{int(gid)}", (int(u) - 12, int(max(v - 6, 14))), scale * 0.9, id_color_u8(int(gid)))
+            rgb = id_color(int(gid)) if colors is None else np.asarray(colors[i], np.float64)
+            _text(image, f"#{int(gid)}", (int(u) - 12, int(max(v - 6, 14))), scale * 0.9,
+                  tuple(int(round(c * 255)) for c in rgb))
     # Timeline: a bar at the bottom with a tick per cut and the current position.
     bar_y = h - 8
     n = max(world.num_frames - 1, 1)
@@ -168,11 +189,20 @@ def annotate(image: np.ndarray, world: WorldResult, frame: int, ids: np.ndarray,
 
 
 def overlay_image(frame_rgb: np.ndarray, world: WorldResult, frame: int, body, title: str = "",
-                  opacity: float = 0.7) -> tuple[np.ndarray, np.ndarray, PeopleLayer]:
-    """One annotated overlay panel: ``(image (H, W, 3) uint8, ids, layer)``."""
-    ids, layer = render_world_frame(world, frame, body)
+                  opacity: float = 0.7, colouring: TruthColouring | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, PeopleLayer]:
+    """One annotated overlay panel: ``(image (H, W, 3) uint8, ids, layer)``.
+
+    Args:
+        colouring: optional colours of ``world``'s people and their legend (default: the id colours).
+    """
+    colors = None if colouring is None else colouring.colors
+    ids, layer = render_world_frame(world, frame, body, colors)
     image = composite(frame_rgb, layer, opacity)
-    return annotate(image, world, frame, ids, layer, title), ids, layer
+    shown = None if colors is None else np.asarray(colors)[np.nonzero(world.valid[:, frame])[0]]
+    # The labels keep the result's own ids, which now differ from their colour's truth id: say so.
+    legend = colouring.legend + " (labels: result ids)" if colouring is not None and colouring.legend else ""
+    return annotate(image, world, frame, ids, layer, title, shown, legend), ids, layer
 
 
 def check_video_matches(result: WorldResult, frame_rgb: np.ndarray, video_path: Path) -> None:
@@ -184,7 +214,8 @@ def check_video_matches(result: WorldResult, frame_rgb: np.ndarray, video_path: 
 
 def write_overlay_video(path: str | Path, result: WorldResult, video_path: str | Path, body,
                         truth: GroundTruth | None = None, opacity: float = 0.7,
-                        progress: Callable[[int, int], None] | None = None) -> Path:
+                        progress: Callable[[int, int], None] | None = None,
+                        colouring: TruthColouring | None = None) -> Path:
     """Write the overlay video (module docstring) as MPEG-4, atomically.
 
     Args:
@@ -195,6 +226,8 @@ def write_overlay_video(path: str | Path, result: WorldResult, video_path: str |
         truth: optional ground truth, drawn in a second panel on the right.
         opacity: mesh opacity over the frame.
         progress: optional ``progress(done, total)`` after each frame.
+        colouring: the result's colours (:func:`multithumbs.viz.pairing.colouring_for`); by default computed
+            here: by the paired truth person with truth, by the result's ids without.
     Raises:
         InputError: the video cannot be read, or its size or frame count differs from the result's.
     """
@@ -202,6 +235,10 @@ def write_overlay_video(path: str | Path, result: WorldResult, video_path: str |
     t_count = result.num_frames
     if truth is not None and truth.world.num_frames != t_count:
         raise InputError(f"truth: {truth.world.num_frames} frames, but the result has {t_count}")
+    if colouring is None and truth is not None:
+        from multithumbs.export.posed import posed_joints
+
+        colouring = colouring_for(result, posed_joints(result, body), truth, posed_joints(truth.world, body))
     h, w = result.image_size
     width = 2 * w if truth is not None else w
     with atomic_output(path) as tmp:
@@ -214,7 +251,8 @@ def write_overlay_video(path: str | Path, result: WorldResult, video_path: str |
                 if f == t_count:
                     raise InputError(f"{video_path}: the video has more frames than the result ({t_count})")
                 check_video_matches(result, rgb, video_path)
-                panel, _, _ = overlay_image(rgb, result, f, body, "result" if truth is not None else "", opacity)
+                panel, _, _ = overlay_image(rgb, result, f, body, "result" if truth is not None else "", opacity,
+                                            colouring)
                 if truth is not None:
                     gt_panel, _, _ = overlay_image(rgb, truth.world, f, body, "ground truth", opacity)
                     panel = np.concatenate([panel, gt_panel], axis=1)

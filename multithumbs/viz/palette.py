@@ -1,5 +1,6 @@
 """The colour of a person: a fixed function of the global id, so a person keeps its colour across cuts,
-pictures and exports."""
+pictures and exports. Pictures that show a result beside its ground truth colour the result by its paired
+truth person instead (:mod:`multithumbs.viz.pairing`)."""
 
 from __future__ import annotations
 

@@ -6,8 +6,11 @@ world_up`) and seen from above. Every person's pelvis path is drawn in its id co
 grey with the viewing direction at the shot's first frame; a red cross marks every person and camera
 position at each cut. With ground truth, the truth is drawn dashed in the same axes: the result is
 mapped onto the truth's world by one Sim(3) (Umeyama) fitted to the camera centres of all frames and the
-pelvis paths of people paired by :func:`multithumbs.metrics.alignment.pair_people` (a display alignment,
-like the metrics' world alignment), and the plot is in the truth's frame.
+pelvis paths of people paired by the evaluation's pairing (:func:`multithumbs.viz.pairing.pair_with_truth`;
+a display alignment, like the metrics' world alignment), and the plot is in the truth's frame. Each
+result person is then drawn in the colour of its paired truth person (:mod:`multithumbs.viz.pairing`), so
+a correct result lies on dashed lines of its own colour and an identity switch at a cut shows as the
+solid line changing colour along one dashed path.
 """
 
 from __future__ import annotations
@@ -21,8 +24,9 @@ import numpy as np
 from multithumbs.errors import InputError
 from multithumbs.export.files import atomic_output
 from multithumbs.export.posed import camera_centres, rotation_to_z_up, shot_index, world_up
-from multithumbs.metrics.alignment import apply_similarity, fit_similarity, pair_people
+from multithumbs.metrics.alignment import apply_similarity, fit_similarity
 from multithumbs.types import GroundTruth, WorldResult
+from multithumbs.viz.pairing import TruthColouring, colouring_for, pair_with_truth
 from multithumbs.viz.palette import id_color
 
 
@@ -58,9 +62,8 @@ def result_to_truth(result: WorldResult, joints: np.ndarray, truth: GroundTruth,
         raise InputError(f"truth: {tw.num_frames} frames, but the result has {result.num_frames}")
     src, dst = [camera_centres(result)], [camera_centres(tw)]
     if result.num_people and tw.num_people:
-        # Pair people by their pelvis in each frame's own camera coordinates (independent of the world frame).
-        cam = lambda j, w: np.einsum("tij,ptj->pti", w.R, j[:, :, 0]) + w.t[None]  # noqa: E731
-        pairs = pair_people(cam(joints, result), result.valid, cam(true_joints, tw), truth.visible)
+        # The evaluation's pairing: camera-frame pelvis, independent of the world frame.
+        pairs = pair_with_truth(result, joints, truth, true_joints)
         for g, p in enumerate(pairs.pred_index):
             if p >= 0:
                 both = result.valid[p] & tw.valid[g]
@@ -73,20 +76,25 @@ def result_to_truth(result: WorldResult, joints: np.ndarray, truth: GroundTruth,
     return sim if bool(fitted) else None
 
 
-def _top_down_world(world: WorldResult, joints: np.ndarray, rotation: np.ndarray, style: str, ax, label: str) -> None:
+def _top_down_world(world: WorldResult, joints: np.ndarray, rotation: np.ndarray, style: str, ax, label: str,
+                    colouring: TruthColouring | None = None) -> None:
     shots = shot_index(world)
     centres = camera_centres(world) @ rotation.T
     pelvis = joints[:, :, 0] @ rotation.T
     cuts = np.asarray(world.cut_frames)
     for p in range(world.num_people):
-        colour = id_color(int(world.person_ids[p]))
+        colour = id_color(int(world.person_ids[p])) if colouring is None else colouring.colors[p]
+        name = f"{label} #{int(world.person_ids[p])}"
+        if colouring is not None and colouring.legend:
+            partner = int(colouring.partner[p])
+            name += f" (paired: truth #{partner})" if partner >= 0 else " (unpaired)"
         first = True
         for s in range(cuts.size + 1):
             frames = np.nonzero((shots == s) & world.valid[p])[0]
             if frames.size == 0:
                 continue
             ax.plot(pelvis[p, frames, 0], pelvis[p, frames, 1], style, color=colour, lw=1.6 if style == "-" else 1.2,
-                    label=f"{label} #{int(world.person_ids[p])}" if first else None)
+                    label=name if first else None)
             ax.plot(pelvis[p, frames[0], 0], pelvis[p, frames[0], 1], "o", color=colour, ms=4,
                     mfc="white" if style != "-" else colour)
             first = False
@@ -115,7 +123,8 @@ def _top_down_world(world: WorldResult, joints: np.ndarray, rotation: np.ndarray
 
 
 def trajectory_figure(result: WorldResult, joints: np.ndarray, truth: GroundTruth | None = None,
-                      true_joints: np.ndarray | None = None, title: str = ""):
+                      true_joints: np.ndarray | None = None, title: str = "",
+                      colouring: TruthColouring | None = None):
     """The top-down figure (module docstring).
 
     Args:
@@ -123,6 +132,8 @@ def trajectory_figure(result: WorldResult, joints: np.ndarray, truth: GroundTrut
         joints: ``(P, T, 24, 3)`` its world joints (:func:`multithumbs.export.posed.posed_joints`).
         truth: optional ground truth; ``true_joints`` ``(G, T, 24, 3)`` its joints (needed with it).
         title: figure title.
+        colouring: the result's colours (default :func:`multithumbs.viz.pairing.colouring_for`: by the
+            paired truth person with truth, by the result's ids without).
     Returns:
         a matplotlib figure (close it, or pass it to :func:`save_figure`).
     """
@@ -132,6 +143,8 @@ def trajectory_figure(result: WorldResult, joints: np.ndarray, truth: GroundTrut
     if truth is not None:
         if true_joints is None:
             raise InputError("true_joints: required with truth")
+        if colouring is None:
+            colouring = colouring_for(result, joints, truth, true_joints)
         rotation = rotation_to_z_up(world_up(truth.world, true_joints))
         sim = result_to_truth(result, joints, truth, true_joints)
         if sim is None:
@@ -149,10 +162,11 @@ def trajectory_figure(result: WorldResult, joints: np.ndarray, truth: GroundTrut
             shown_joints, rotation_pred = moved, rotation
             note = " (result Sim(3)-aligned to the truth for display)"
         _top_down_world(truth.world, true_joints, rotation, "--", ax, "truth")
-        _top_down_world(shown_world, shown_joints, rotation_pred, "-", ax, "result")
+        _top_down_world(shown_world, shown_joints, rotation_pred, "-", ax, "result", colouring)
+        note += f"\n{colouring.legend} (solid: result, dashed: truth)" if colouring.legend else ""
     else:
         rotation = rotation_to_z_up(world_up(result, joints))
-        _top_down_world(result, joints, rotation, "-", ax, "result")
+        _top_down_world(result, joints, rotation, "-", ax, "result", colouring)
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
     ax.set_xlabel("x (m, up-aligned world)")
@@ -166,10 +180,10 @@ def trajectory_figure(result: WorldResult, joints: np.ndarray, truth: GroundTrut
 
 def write_trajectory_plot(out_base: str | Path, result: WorldResult, joints: np.ndarray,
                           truth: GroundTruth | None = None, true_joints: np.ndarray | None = None,
-                          title: str = "") -> dict[str, Path]:
+                          title: str = "", colouring: TruthColouring | None = None) -> dict[str, Path]:
     """Write ``<out_base>.png`` and ``<out_base>.svg`` of :func:`trajectory_figure`; returns ``{"png": .., "svg": ..}``."""
     base = Path(out_base)
-    fig = trajectory_figure(result, joints, truth, true_joints, title)
+    fig = trajectory_figure(result, joints, truth, true_joints, title, colouring)
     png, svg = save_figure(fig, [base.with_suffix(".png"), base.with_suffix(".svg")])
     return {"png": png, "svg": svg}
 
