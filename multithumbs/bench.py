@@ -29,7 +29,7 @@ from multithumbs.synth.scene import SceneConfig
 
 METRIC_KEYS = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "ate", "ids", "pck", "jitter", "fs")
 """The headline metrics in the paper's order, with the field's meaning (METRICS.md)."""
-EXTRA_KEYS = ("w_mpjpe_track", "wa_mpjpe_track", "accel_world", "fs_gt", "ate_mean", "ids_total",
+EXTRA_KEYS = ("w_mpjpe_track", "wa_mpjpe_track", "accel_world", "fs_gt", "fs_truth", "ate_mean", "ids_total",
               "ids_within_shots", "coverage")
 """This project's own variants and diagnostics, reported beside the headline metrics."""
 LABEL_KEYS = ("ate_alignment", "ids_at_cuts")

@@ -230,6 +230,12 @@ def score_sequence(result: WorldResult, truth: GroundTruth, body_model: Any,
         samples["ate"] = ate.errors
 
     samples.update(_gt_free(result, pred_joints, pred_feet, options, notes))
+    if truth.visible.any():
+        # The same ground-truth-free FS on the truth's own motion: the value a perfect reconstruction gets
+        # (a real capture's or a procedural walk's feet are never perfectly still), to read ``fs`` against.
+        up = np.asarray(options.up) if options.up is not None else estimate_up(true_joints, truth.visible)
+        samples["fs_truth"] = foot_sliding(true_feet, truth.visible, up, true_cuts, options.contact_height,
+                                           options.ground_percentile)
     return SequenceScores(samples, pairing, switches, ate, notes, switch_events)
 
 
@@ -308,7 +314,7 @@ def _gt_free(result: WorldResult, pred_joints: np.ndarray, pred_feet: np.ndarray
 
 
 POOLED_MEANS = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "jitter", "fs",
-                "mpjpe_world", "mpvpe_world", "w_mpjpe_track", "wa_mpjpe_track", "accel_world", "fs_gt")
+                "mpjpe_world", "mpvpe_world", "w_mpjpe_track", "wa_mpjpe_track", "accel_world", "fs_gt", "fs_truth")
 """Metrics reported as the mean of their pooled samples."""
 
 
@@ -316,6 +322,7 @@ METRIC_UNITS = {
     "w_mpjpe": "mm", "wa_mpjpe": "mm", "mpjpe": "mm", "pa_mpjpe": "mm", "mpvpe": "mm", "accel": "m/s^2",
     "ate": "m", "ids": "switches/sequence", "pck": "%", "jitter": "10 m/s^3", "fs": "mm/frame",
     "w_mpjpe_track": "mm", "wa_mpjpe_track": "mm", "accel_world": "mm/frame^2", "fs_gt": "mm",
+    "fs_truth": "mm/frame",
     "mpjpe_world": "mm", "mpvpe_world": "mm", "ate_mean": "m", "ids_total": "switches",
     "ids_per_cut": "switches/cut", "ids_within_shots": "switches", "pck_005": "%", "coverage": "fraction",
 }
@@ -341,6 +348,7 @@ def summarize(scores: Sequence[SequenceScores], options: EvaluationOptions) -> d
         as DROID-SLAM and TRAM report), ``ids`` (switches per sequence, averaged over sequences), ``pck``
         (%), ``jitter`` (10 m/s^3), ``fs`` (mm/frame); this project's own ``w_mpjpe_track,
         wa_mpjpe_track`` (one chunk per track, mm), ``accel_world`` (mm/frame^2), ``fs_gt`` (mm),
+        ``fs_truth`` (``fs`` of the truth's own motion, the reference a perfect result reaches, mm/frame),
         ``mpjpe_world, mpvpe_world`` (mm); and ``ate_mean`` (mean over sequences of each one's mean
         error), ``ate_per_sequence``, ``ate_alignment`` (per sequence: ``sim3_camera_centres`` or
         ``sim3_people_joints``), ``ate_fallback`` (any sequence used the joints), ``ids_total``,

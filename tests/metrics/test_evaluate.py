@@ -16,7 +16,7 @@ REQUIRED_KEYS = {"w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "
                  "fs", "coverage", "ids_per_cut", "pck_005", "ate_mean", "ate_fallback", "mpjpe_world",
                  "mpvpe_world", "w_mpjpe_track", "wa_mpjpe_track", "accel_world", "fs_gt", "ids_total",
                  "ids_at_cuts", "ids_within_shots", "ids_per_sequence", "ate_per_sequence", "ate_alignment",
-                 "options"}
+                 "fs_truth", "id_switch_events", "options"}
 
 
 def _move_world(world: WorldResult, rng: np.random.Generator) -> WorldResult:
@@ -150,6 +150,9 @@ def test_foot_sliding_of_standing_people(scene, body_model):
     # The predicted feet as predicted: a drift of 8 mm per frame adds about 8 mm where the feet rest.
     assert sliding["fs_gt"] > perfect["fs_gt"] + 5.0
     assert sliding["fs"] > perfect["fs"] + 1.0
+    # The reference: FS of the truth's own motion, which the truth scored against itself equals.
+    assert perfect["fs"] == pytest.approx(perfect["fs_truth"], rel=1e-9)
+    assert sliding["fs_truth"] == pytest.approx(perfect["fs_truth"], rel=1e-12)
 
 
 def test_missing_keypoints_give_nan_pck_with_a_note(scene, body_model):
