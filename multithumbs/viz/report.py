@@ -17,6 +17,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from multithumbs.metrics.evaluate import report_rows
+
 from multithumbs.types import WorldResult
 
 _PICTURES = (("trajectory_png", "Top-down trajectories"),)
@@ -95,7 +97,15 @@ def render_report_markdown(result: WorldResult, files: Mapping[str, str | Path] 
     lines += ["## Metrics", ""]
     flat = flatten_metrics(metrics) if metrics else {}
     if flat:
-        lines += _table(("metric", "value"), [(k, _fmt(v)) for k, v in flat.items()])
+        # The evaluation's numbers with their units (headline first; docs/METRICS.md defines each), then
+        # the rest (options, notes) as they come.
+        rows = [r for r in report_rows(dict(metrics)) if not isinstance(r["value"], Mapping)]
+        for r in rows:
+            r["value"] = math.nan if r["value"] is None else r["value"]
+        shown = {r["metric"] for r in rows}
+        lines += ["| metric | value | unit |", "| --- | ---: | --- |",
+                  *(f"| {r['metric']} | {_fmt(r['value'])} | {r['unit']} |" for r in rows)]
+        lines += [f"| {k} | {_fmt(v)} |  |" for k, v in flat.items() if k not in shown]
     else:
         lines.append("No metrics (no ground truth given)." if not has_truth else "No metrics were computed.")
     lines.append("")

@@ -19,8 +19,12 @@ def test_report_sections(small_scene, tmp_path):
     for heading in ("## Summary", "## Metrics", "## Pictures", "## Backends and fallbacks", "## Timings", "## Run",
                     "## Files"):
         assert heading in text
-    assert "| w_mpjpe | 123.5 |" in text and "| pck.005 | 0.9 |" in text and "| ate | n/a |" in text
+    # Evaluation numbers carry their unit; how each sequence's ATE was aligned is shown as text.
+    assert "| w_mpjpe | 123.5 | mm |" in text and "| pck.005 | 0.9 |  |" in text and "| ate | n/a | m |" in text
+    assert "| ids | 2 | switches/sequence |" in text
     assert "curve" not in text
+    aligned = render_report_markdown(world, files, {"ate": 0.1, "ate_alignment": ["sim3_camera_centres"]})
+    assert "| ate_alignment | sim3_camera_centres |  |" in aligned
     assert "![Top-down trajectories](trajectory.png)" in text
     assert "left: result, right: ground truth" in text
     assert "| shots | scenedetect:adaptive |" in text
