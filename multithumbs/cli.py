@@ -159,7 +159,10 @@ def _flow_environment() -> None:
     cache = Path(os.environ.get("MULTITHUMBS_CACHE", Path.home() / ".cache" / "multithumbs"))
     os.environ.setdefault("PREFECT_HOME", str(cache / "prefect"))
     os.environ.setdefault("PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS", "90")
+    # No usage data leaves a user's machine unasked: the embedded server's analytics and Prefect's
+    # client-side telemetry (with its first-run notice) are off unless the user sets these themselves.
     os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
+    os.environ.setdefault("DO_NOT_TRACK", "1")
     os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
 
 

@@ -207,3 +207,18 @@ def test_run_lists_outputs_with_their_subfolders(monkeypatch, tmp_path, tiny_vid
     for rel in ("result.npz", "smpl/person_0.npz", "bvh/person_0.bvh", "colmap/images.txt"):
         assert rel in text, rel
     assert "mm" in text and seen["smpl_model"] == str(smpl.resolve())
+
+
+def test_flow_environment_turns_prefect_telemetry_off_unless_the_user_chose(monkeypatch, tmp_path):
+    from multithumbs.cli import _flow_environment
+
+    env = {"MULTITHUMBS_CACHE": str(tmp_path), "DO_NOT_TRACK": "0"}
+    monkeypatch.setattr(os, "environ", env)
+    _flow_environment()
+    assert env["PREFECT_SERVER_ANALYTICS_ENABLED"] == "false"
+    assert env["DO_NOT_TRACK"] == "0"  # the user's own value wins
+    assert env["PREFECT_HOME"] == str(tmp_path / "prefect")
+    env.clear()
+    env["MULTITHUMBS_CACHE"] = str(tmp_path)
+    _flow_environment()
+    assert env["DO_NOT_TRACK"] == "1"
