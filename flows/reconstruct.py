@@ -33,10 +33,11 @@ def metrics_rows(metrics: dict[str, Any]) -> list[dict[str, Any]]:
 
 def publish_outputs(out_dir: str | Path, name: str, variant: str, video_path: str, method_refs: dict[str, ArtifactRef],
                     spaces: list[ArtifactRef], truth: ArtifactRef | None, metrics: dict[str, Any] | None,
-                    run_info: dict[str, Any]) -> dict[str, str]:
-    """Write the video's outputs (:func:`tasks.outputs.write_outputs`) and put its report and metrics table
-    in the dashboard."""
-    files = write_outputs(str(out_dir), name, variant, video_path, method_refs, spaces, truth, metrics, run_info)
+                    run_info: dict[str, Any], smpl_model: str | None = None) -> dict[str, str]:
+    """Write the video's outputs (:func:`tasks.outputs.write_outputs`, posed with ``smpl_model``) and put
+    its report and metrics table in the dashboard."""
+    files = write_outputs(str(out_dir), name, variant, video_path, method_refs, spaces, truth, metrics, run_info,
+                          smpl_model)
     publish_report(name, variant, files, metrics)
     return files
 
@@ -57,7 +58,7 @@ SIMULATED_BACKENDS = {"shots": "ground truth cuts", "perception": "SIMULATED (sy
 
 @flow(name="reconstruct-synthetic", task_runner=ThreadPoolTaskRunner(max_workers=2))
 def reconstruct_synthetic(scene: dict, out_dir: str, store_url: str, variant: str = "full",
-                          method: dict[str, Any] | None = None) -> dict[str, Any]:
+                          method: dict[str, Any] | None = None, smpl_model: str | None = None) -> dict[str, Any]:
     """Synthesise a scene (with SIMULATED perception, shared space and camera tracking), reconstruct it with
     the method's stages as cached tasks, score it, and write ``result.npz`` and ``metrics.json`` to ``out_dir``.
 
@@ -67,15 +68,21 @@ def reconstruct_synthetic(scene: dict, out_dir: str, store_url: str, variant: st
         store_url: artifact store (local path or fsspec URL).
         variant: method variant (``full``, an ablation or a baseline).
         method: parameter overrides, e.g. ``{"reid": {"max_distance": 0.8}}`` (:func:`tasks.method.method_config`).
+        smpl_model: the SMPL file (.npz or .pkl) the scene is synthesised with and every stage poses; default
+            ``$MULTITHUMBS_SMPL_MODEL``, else the procedural body (:func:`tasks.body.resolve_body`).
     """
+    from tasks.body import resolve_body
+
+    body_path, body = resolve_body(smpl_model)
     Path(out_dir).mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
     start = time.perf_counter()
-    refs = simulate_inputs(store_url, scene, out_dir)
+    refs = simulate_inputs(store_url, scene, out_dir, body_path, body)
     timings["synthesis and simulated inputs"] = time.perf_counter() - start
-    (method_refs,) = run_method(store_url, [(refs, method_params(variant, method))], timings)
-    metrics = evaluate_result(method_refs["result"], refs["truth"])
+    (method_refs,) = run_method(store_url, [(refs, method_params(variant, method, body))], timings, body_path)
+    metrics = evaluate_result(method_refs["result"], refs["truth"], body_path)
     publish_outputs(out_dir, scene.get("name", "scene"), variant, str(Path(out_dir) / "video.mp4"), method_refs,
                     space_refs(refs),
-                    refs["truth"], metrics, {"backends": SIMULATED_BACKENDS, "timings": timings, "variant": variant})
+                    refs["truth"], metrics, {"backends": SIMULATED_BACKENDS, "timings": timings, "variant": variant,
+                                             "body_model": body_path or "procedural"}, body_path)
     return metrics

@@ -40,7 +40,8 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
                       intrinsics: list[float] | None = None, variant: str = "full",
                       method: dict[str, Any] | None = None, truth: str | None = None,
                       shots: dict[str, Any] | None = None, tracking: dict[str, Any] | None = None,
-                      two_view: dict[str, Any] | None = None, cuts: list[int] | None = None) -> dict[str, Any]:
+                      two_view: dict[str, Any] | None = None, cuts: list[int] | None = None,
+                      smpl_model: str | None = None) -> dict[str, Any]:
     """Reconstruct the people of an edited video in one world frame; write the result, pictures, exports and
     report to ``out_dir`` (and metrics when ``truth`` is given).
 
@@ -55,14 +56,18 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
             :class:`~multithumbs.scene.tracking.TrackingConfig`, :class:`~multithumbs.scene.two_view.TwoViewConfig`.
         cuts: the cut frames when they are known (a benchmark clip built from a spec); shot detection is
             then skipped and the shots' source is ``given``.
+        smpl_model: the SMPL file (.npz or .pkl) every stage poses people with; default
+            ``$MULTITHUMBS_SMPL_MODEL``, else the procedural body (:func:`tasks.body.resolve_body`).
     """
     from multithumbs.scene.shots import ShotConfig
     from multithumbs.scene.tracking import TrackingConfig
     from multithumbs.scene.two_view import TwoViewConfig
     from multithumbs.video import probe_video
     from storage.keys import file_digest
+    from tasks.body import resolve_body
 
     info = probe_video(video)
+    body_path, body = resolve_body(smpl_model)
     K = intrinsics_matrix(intrinsics, info.width, info.height)
     digest = file_digest(video)
     Path(out_dir).mkdir(parents=True, exist_ok=True)
@@ -102,15 +107,16 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
     inputs = {"shots": shots_ref, **{f"tracks_{k}": r for k, r in enumerate(tracks)},
               **{f"trajectory_{k}": r for k, r in enumerate(trajectories)},
               **{f"space_{c}": r for c, r in enumerate(spaces)}}
-    (method_refs,) = run_method(store_url, [(inputs, method_params(variant, method))], timings)
+    (method_refs,) = run_method(store_url, [(inputs, method_params(variant, method, body))], timings, body_path)
     clock = time.perf_counter()
     truth_ref = truth_future.result() if truth_future else None
-    metrics = evaluate_result(method_refs["result"], truth_ref) if truth_ref else None
+    metrics = evaluate_result(method_refs["result"], truth_ref, body_path) if truth_ref else None
     lap("evaluation")
     backends = _backends(store_url, shots_ref, trajectories, spaces, perception)
     files = publish_outputs(out_dir, Path(video).stem, variant, video, method_refs, space_refs(inputs), truth_ref,
                             metrics, {"backends": backends, "timings": timings, "variant": variant,
-                                      "fallbacks": _fallbacks(spaces)})
+                                      "fallbacks": _fallbacks(spaces), "body_model": body_path or "procedural"},
+                            body_path)
     return {"metrics": metrics, "files": files, "num_shots": len(tracks), "backends": backends, "timings": timings}
 
 

@@ -12,14 +12,17 @@ from typing import Optional
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich import box
 from rich.table import Table
 
+from multithumbs.cli_format import hide_flag_types
 from multithumbs.errors import InputError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Multi-THuMBS: multi-person 3D human meshes across the cuts of edited video.")
 console = Console(stderr=True)
 
+hide_flag_types()
 SMPL_OPTION = typer.Option(None, "--smpl-model", help="SMPL model file (.npz or .pkl); default: "
                            "$MULTITHUMBS_SMPL_MODEL, else the procedural SMPL-format body.")
 
@@ -93,16 +96,28 @@ def list_suite(name: str = typer.Argument("standard", help="Suite name."),
     if as_json:
         print(json.dumps([asdict(c) for c in configs], indent=2, default=str))
         return
-    table = Table(title=f"suite {name}")
-    for col in ("scene", "people", "shots", "frames", "cut angle", "moving", "special"):
-        table.add_column(col)
+    from multithumbs.cli_format import output_console, yes_no
+
+    # The scene column never wraps: its names are what --scene takes. Free text (special) folds instead.
+    # The scene column never wraps: its names are what --scene takes. Free text (special) folds instead;
+    # whether cameras move is one of the specials, so that the narrowest terminal keeps room for them.
+    table = Table(title=f"suite {name}", box=box.SIMPLE_HEAD, padding=(0, 1, 0, 0), caption="`synth --suite "
+                  f"{name} --scene SCENE` renders one, `bench --scenes A,B` runs some", caption_justify="left")
+    table.add_column("scene", no_wrap=True)
+    for col in ("people", "shots", "frames"):
+        table.add_column(col, justify="right", no_wrap=True)
+    table.add_column("cut\nangle", justify="right", no_wrap=True)
+    table.add_column("special", overflow="fold")
     for c in configs:
-        special = ", ".join(filter(None, [c.only_in_one_shot and "one-shot person",
+        moving = c.moving_cameras
+        moving_text = (moving and "moving cameras" if not isinstance(moving, (list, tuple)) else
+                       any(moving) and f"moving cameras: {yes_no(moving)}")
+        special = ", ".join(filter(None, [moving_text, c.only_in_one_shot and "one-shot person",
                                           c.dressed_alike and "dressed alike", c.abreast_pair and "walking abreast",
                                           c.crossing_pair and "crossing"]))
-        table.add_row(c.name, str(c.num_people), str(c.num_shots), str(c.num_frames), f"{c.cut_angle_deg:g}",
-                      str(c.moving_cameras), special)
-    Console().print(table)
+        table.add_row(c.name, str(c.num_people), str(c.num_shots), str(c.num_frames), f"{c.cut_angle_deg:g}°",
+                      special)
+    output_console().print(table)
 
 
 @app.command("eval")
@@ -144,7 +159,10 @@ def _flow_environment() -> None:
     cache = Path(os.environ.get("MULTITHUMBS_CACHE", Path.home() / ".cache" / "multithumbs"))
     os.environ.setdefault("PREFECT_HOME", str(cache / "prefect"))
     os.environ.setdefault("PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS", "90")
+    # No usage data leaves a user's machine unasked: the embedded server's analytics and Prefect's
+    # client-side telemetry (with its first-run notice) are off unless the user sets these themselves.
     os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
+    os.environ.setdefault("DO_NOT_TRACK", "1")
     os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
 
 
@@ -186,6 +204,7 @@ def run_cmd(
     store: Optional[str] = typer.Option(None, "--store", help="Artifact store URL (default: OUT/store)."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Reuse an output folder that holds results."),
     as_json: bool = typer.Option(False, "--json", help="Print the run's summary as JSON."),
+    smpl_model: Optional[Path] = SMPL_OPTION,
 ) -> None:
     """Reconstruct the people of a video across its cuts through the Prefect flow (embedded API): shots,
     camera trajectories and shared spaces from the pixels, people from --perception."""
@@ -209,6 +228,9 @@ def run_cmd(
                                  f"trust this file")
     method = _method_overrides(settings)
     method_config(variant, method)
+    from multithumbs.body.model import resolve_model_path
+
+    resolve_model_path(smpl_model)
     K = None
     if intrinsics is not None:
         try:
@@ -226,22 +248,30 @@ def run_cmd(
     with console.status(f"reconstructing {video.name}: {info.num_frames} frames, {info.width}x{info.height}"):
         summary = reconstruct_video(str(video.resolve()), str(out_dir.resolve()),
                                     store or str((out_dir / "store").resolve()), perception, trust_pickle, K,
-                                    variant, method, None if truth is None else str(truth.resolve()))
+                                    variant, method, None if truth is None else str(truth.resolve()),
+                                    smpl_model=None if smpl_model is None else str(smpl_model.resolve()))
     if as_json:
         print(json.dumps(_jsonable(summary), indent=2, sort_keys=True))
         return
+    from multithumbs.cli_format import file_lines, format_value, output_console
+    from multithumbs.metrics.evaluate import METRIC_UNITS
+
     table = Table(title=f"{video.name}: {summary['num_shots']} shots ({variant})")
-    table.add_column("")
-    table.add_column("", justify="right")
+    table.add_column("stage", no_wrap=True)
+    table.add_column("backend or value", overflow="fold")
+    table.add_column("unit", overflow="fold")
     for stage, backend in summary["backends"].items():
-        table.add_row(stage, backend)
+        table.add_row(stage, backend, "")
     for stage, seconds in summary["timings"].items():
-        table.add_row(f"{stage} (s)", f"{seconds:.1f}")
+        table.add_row(stage, f"{seconds:.1f}", "s")
     for key, value in (summary["metrics"] or {}).items():
         if key in METRIC_KEYS:
-            table.add_row(key, "nan" if value is None else f"{value:.3f}")
-    Console().print(table)
-    console.print(f"outputs in {out_dir}: " + ", ".join(sorted(Path(p).name for p in summary["files"].values())))
+            table.add_row(key, format_value(value, ".3f"), METRIC_UNITS.get(key, ""))
+    output_console().print(table)
+    # Paths relative to the output folder, subfolders kept (smpl/..., bvh/...): what a user opens next.
+    console.print(f"outputs in {out_dir}:")
+    for line in file_lines(summary["files"], out_dir):
+        console.print(line, highlight=False, soft_wrap=True)
 
 
 @app.command("demo")
@@ -251,6 +281,7 @@ def demo_cmd(
     variant: str = typer.Option("full", "--variant", help="Method variant."),
     store: Optional[str] = typer.Option(None, "--store", help="Artifact store URL (default: OUT/store)."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Reuse an output folder that holds a demo."),
+    smpl_model: Optional[Path] = SMPL_OPTION,
 ) -> None:
     """Synthesise a standard-suite scene and reconstruct it through the real Prefect flow (embedded API)."""
     from multithumbs.bench import METRIC_KEYS
@@ -262,19 +293,27 @@ def demo_cmd(
     _flow_environment()
     config = suite_scene("standard", scene)
     variant_config(variant)
+    from multithumbs.body.model import resolve_model_path
+
+    resolve_model_path(smpl_model)  # a missing file fails before Prefect starts
     out_dir = prepare_output_dir(out, overwrite)
     from flows.reconstruct import reconstruct_synthetic
 
-    with console.status(f"{scene}: synthesising and reconstructing (a first run takes about a minute)"):
+    # True of both cases without asking the store first (it may be remote): a re-run computes nothing,
+    # but still starts the embedded Prefect API.
+    with console.status(f"{scene}: synthesising and reconstructing (about a minute the first time; "
+                        f"a re-run reuses the store)"):
         metrics = reconstruct_synthetic(config_to_json(config), str(out_dir.resolve()),
-                                        store or str((out_dir / "store").resolve()), variant)
-    table = Table(title=f"{scene} ({variant}) — perception, shared space and camera tracking SIMULATED")
-    table.add_column("metric")
-    table.add_column("value", justify="right")
-    for key in METRIC_KEYS:
-        value = metrics.get(key)
-        table.add_row(key, "nan" if value is None else f"{value:.3f}")
-    Console().print(table)
+                                        store or str((out_dir / "store").resolve()), variant,
+                                        smpl_model=None if smpl_model is None else str(smpl_model.resolve()))
+    from multithumbs.cli_format import metric_list_table, output_console
+    from multithumbs.metrics.evaluate import METRIC_UNITS
+
+    # The title stays one line; the label a reader must not miss goes under the table at full width (a
+    # caption would wrap to the table's narrow width).
+    out = output_console()
+    out.print(metric_list_table(f"{scene} ({variant})", metrics, METRIC_KEYS, METRIC_UNITS))
+    out.print("SIMULATED: perception, shared space and camera tracking; the method is real.")
     console.print(f"outputs in {out_dir}: video.mp4, ground_truth.npz, result.npz, metrics.json, overlay.mp4, "
                   f"trajectory.png, report.md, scene.glb, scene.rrd, smpl/, bvh/, colmap/ (list: outputs.json)")
 
@@ -309,14 +348,18 @@ def bench_cmd(
                                                           "seconds": elapsed, "backends": BACKENDS}}),
                          indent=1, sort_keys=True))
         return
-    table = Table(title=f"suite {suite_name}: {len(configs)} scenes, {elapsed:.0f} s (backends: "
-                  + ", ".join(f"{k} {v}" for k, v in BACKENDS.items()) + ")")
-    table.add_column("variant")
-    for key in METRIC_KEYS:
-        table.add_column(key, justify="right")
-    for v in names:
-        table.add_row(v, *(f"{summary[v][k]['mean']:.3g}" for k in METRIC_KEYS))
-    Console().print(table)
+    from multithumbs.cli_format import output_console, split_metric_tables
+    from multithumbs.metrics.evaluate import METRIC_UNITS
+
+    # Eleven metrics do not fit 80 columns beside the variant names: split_metric_tables packs them into
+    # as many tables as the terminal needs, each repeating the variant column.
+    out = output_console()
+    means = {v: {k: summary[v][k]["mean"] for k in METRIC_KEYS} for v in names}
+    tables = split_metric_tables(out, f"suite {suite_name}: {len(configs)} scenes, {elapsed:.0f} s, means",
+                                 "variant", means, METRIC_KEYS, METRIC_UNITS,
+                                 caption="backends: " + "; ".join(f"{k} {v}" for k, v in BACKENDS.items()))
+    for table in tables:
+        out.print(table)
 
 
 def _jsonable(value):

@@ -1,19 +1,68 @@
 #!/usr/bin/env bash
 # Create .venv and install Multi-THuMBS with its development tools, from the package registries only.
+# One line per step with the time it took (the whole takes a few minutes; pip itself runs quietly).
+#
+#   PYTHON=python3.11        the interpreter of the venv (default python3)
+#   MULTITHUMBS_TORCH=auto   cpu | cuda | auto: the CUDA build where `nvidia-smi` runs, else the CPU one
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
-[ -x .venv/bin/python ] || "$PY" -m venv .venv
+TORCH=torch==2.13.0
+MODE=${MULTITHUMBS_TORCH:-auto}
 PIP=(.venv/bin/python -m pip --disable-pip-version-check -q)
-"${PIP[@]}" install --upgrade pip
-# The CPU build of torch first: an unpinned torch pulls a multi-GB CUDA build.
-"${PIP[@]}" install torch==2.13.0
-"${PIP[@]}" install -e ".[dev]"
+total=$SECONDS
+n=0
+
+step() {  # step "what is being installed" command...
+  local start=$SECONDS
+  n=$((n + 1))
+  printf '[%d/8] %s ... ' "$n" "$1"
+  shift
+  "$@"
+  printf 'done (%d s)\n' $((SECONDS - start))
+}
+
+case "$MODE" in
+  auto) if command -v nvidia-smi >/dev/null 2>&1 && nvidia-smi >/dev/null 2>&1; then MODE=cuda; else MODE=cpu; fi ;;
+  cpu|cuda) ;;
+  *) echo "MULTITHUMBS_TORCH=$MODE: expected cpu, cuda or auto" >&2; exit 2 ;;
+esac
+
+install_torch() {
+  if [ "$MODE" = cuda ]; then
+    "${PIP[@]}" install "$TORCH"  # PyPI's Linux wheel is the CUDA build (with its ~20 nvidia-* packages)
+  elif "${PIP[@]}" install --dry-run --no-deps --no-index "$TORCH" >/dev/null 2>&1; then
+    "${PIP[@]}" install "$TORCH"  # a wheel on this machine's disk (pip's find-links) satisfies the pin
+  else
+    # PyPI's plain torch is the CUDA build: without a GPU, take the CPU build from PyTorch's own index.
+    "${PIP[@]}" install "$TORCH" --index-url https://download.pytorch.org/whl/cpu
+  fi
+}
+
+# pip check's complaints about the three packages installed --no-deps below are expected (docs/INSTALL.md);
+# any other broken requirement fails the setup.
+check_requirements() {
+  local report
+  report=$(.venv/bin/python -m pip check 2>&1 || true)
+  report=$(grep -vE '^(scenedetect|trackeval|depth-anything-3) ' <<<"$report" | grep -v '^No broken requirements' || true)
+  if [ -n "$report" ]; then
+    printf 'failed\n%s\n' "$report" >&2
+    return 1
+  fi
+}
+
+step "virtual environment .venv ($("$PY" --version 2>&1))" bash -c '[ -x .venv/bin/python ] || "$0" -m venv .venv' "$PY"
+step "pip, upgraded" "${PIP[@]}" install --upgrade pip
+step "PyTorch 2.13.0, $MODE build" install_torch
+step "multithumbs in editable mode, with its dev tools (.[dev])" "${PIP[@]}" install -e ".[dev]"
 # scenedetect asks for opencv-python (GUI), which clobbers the headless cv2: install it alone.
-"${PIP[@]}" install --no-deps scenedetect==0.7.2
+step "scenedetect 0.7.2 (--no-deps: it asks for the GUI opencv-python)" "${PIP[@]}" install --no-deps scenedetect==0.7.2
 # Depth-Anything-3 (a learned shared-space backend, tested on a tiny random model): its torchvision
 # requirement does not import beside the CPU torch, and the adapter does not need it.
-"${PIP[@]}" install --no-deps depth-anything-3==0.1.1
+step "depth-anything-3 0.1.1 (--no-deps: its torchvision breaks the CPU torch)" \
+  "${PIP[@]}" install --no-deps depth-anything-3==0.1.1
 # TrackEval, the reference CLEAR-MOT evaluator the IDs tests compare with: it asks for opencv-python (GUI)
 # too, and its CLEAR metric needs only numpy and scipy.
-"${PIP[@]}" install --no-deps trackeval==1.3.0
+step "trackeval 1.3.0 (--no-deps: it asks for the GUI opencv-python)" "${PIP[@]}" install --no-deps trackeval==1.3.0
+step "pip check (known exceptions: docs/INSTALL.md)" check_requirements
+echo "ready in $((SECONDS - total)) s: .venv/bin/multithumbs --help"

@@ -23,17 +23,20 @@ from tasks.artifacts import STAGE_VERSIONS, cached_stage, load, open_store, stag
 
 
 @task(name="simulate_inputs", cache_policy=NO_CACHE, retries=1)
-def simulate_inputs(store_url: str, scene: dict, out_dir: str | None = None) -> dict[str, Any]:
+def simulate_inputs(store_url: str, scene: dict, out_dir: str | None = None, smpl_model: str | None = None,
+                    body: dict[str, str] | None = None) -> dict[str, Any]:
     """Synthesise a scene and its SIMULATED per-shot inputs; artifacts for truth, shots, tracks, cameras, spaces.
 
     Also writes the scene's files (video, ground truth, contact sheet) into ``out_dir`` when given.
-    The scene is rendered only when one of its artifacts is missing.
+    The scene is rendered only when one of its artifacts is missing. The people are ``smpl_model``'s
+    bodies (None: the procedural body) and ``body`` its identity (:func:`tasks.body.resolve_body`),
+    hashed into the keys.
     """
     from multithumbs.synth.scene import config_from_json
 
     config = config_from_json(scene)
     store = open_store(store_url)
-    params = {"scene": scene}
+    params = {"scene": scene, **(body or {})}
     n_cuts = config.num_shots - 1
     names = ["truth", "shots", *(f"tracks_{k}" for k in range(config.num_shots)),
              *(f"trajectory_{k}" for k in range(config.num_shots)), *(f"space_{c}" for c in range(n_cuts))]
@@ -49,12 +52,12 @@ def simulate_inputs(store_url: str, scene: dict, out_dir: str | None = None) -> 
     from multithumbs.synth.scene import synthesize
     from multithumbs.synth.simulated_geometry import simulate_camera_trajectory, simulate_shared_space
 
-    body = load_body_model()
-    video = synthesize(config, body)
+    body_model = load_body_model(smpl_model)
+    video = synthesize(config, body_model)
     if out_dir is not None:
         write_synthetic(out_dir, video)
     shots = video.truth.world.shots()
-    tracks = simulate_perception(video, body)
+    tracks = simulate_perception(video, body_model)
     parts = {"truth": video.truth, "shots": shots,
              **{f"tracks_{k}": t for k, t in enumerate(tracks)},
              **{f"trajectory_{k}": simulate_camera_trajectory(video, k) for k in range(config.num_shots)},

@@ -10,6 +10,7 @@ from typing import Any
 
 from storage.store import ArtifactRef
 from tasks.artifacts import cached_stage, load, stage_task
+from tasks.body import without_body
 
 METHOD_SECTIONS = ("align", "reid", "post")
 """Sub-configs of :class:`multithumbs.pipeline.MethodConfig` that overrides may name."""
@@ -44,16 +45,22 @@ def method_config(variant: str = "full", overrides: dict[str, Any] | None = None
     return config
 
 
-def method_params(variant: str = "full", overrides: dict[str, Any] | None = None) -> dict[str, dict]:
-    """JSON parameters of each method stage (exactly what its key hashes)."""
+def method_params(variant: str = "full", overrides: dict[str, Any] | None = None,
+                  body: dict[str, str] | None = None) -> dict[str, dict]:
+    """JSON parameters of each method stage (exactly what its key hashes).
+
+    ``body`` is the body model's identity (:func:`tasks.body.resolve_body`), added to the stages that pose
+    bodies (alignment, propagation, post-processing); re-identification does not.
+    """
     config = method_config(variant, overrides)
+    body = body or {}
     return {
-        "align": {"align": dataclasses.asdict(config.align), "skip": config.skip_align},
+        "align": {"align": dataclasses.asdict(config.align), "skip": config.skip_align, **body},
         "propagate": {"independent": config.independent_shots,
-                      "propagate_orientation": config.propagate_orientation},
+                      "propagate_orientation": config.propagate_orientation, **body},
         "reid": {"reid": dataclasses.asdict(config.reid), "appearance_window": config.appearance_window},
         "post": {"post": dataclasses.asdict(config.post), "skip_post": config.skip_post,
-                 "variant": config.variant},
+                 "variant": config.variant, **body},
     }
 
 
@@ -72,7 +79,8 @@ def _aligned(inputs: dict[str, ArtifactRef], n_shots: int) -> list:
 
 
 @stage_task("align")
-def align_cut(store_url: str, inputs: dict[str, ArtifactRef], params: dict) -> ArtifactRef:
+def align_cut(store_url: str, inputs: dict[str, ArtifactRef], params: dict,
+              smpl_model: str | None = None) -> ArtifactRef:
     """Scale and three-stage alignment at one cut (inputs: ``tracks_before``, ``tracks_after``, ``space``)."""
     def compute():
         from multithumbs.body.model import load_body_model
@@ -81,14 +89,16 @@ def align_cut(store_url: str, inputs: dict[str, ArtifactRef], params: dict) -> A
 
         space = load(inputs["space"])
         people = boundary_people(sanitize_tracks(load(inputs["tracks_before"])),
-                                 sanitize_tracks(load(inputs["tracks_after"])), load_body_model(), K=space.K)
+                                 sanitize_tracks(load(inputs["tracks_after"])), load_body_model(smpl_model),
+                                 K=space.K)
         return align_boundary(people, space, _section(AlignConfig, params["align"]),
                               skip=params["skip"])
     return cached_stage("align", compute, store_url, params, inputs)
 
 
 @stage_task("propagate")
-def propagate_shots(store_url: str, inputs: dict[str, ArtifactRef], params: dict) -> ArtifactRef:
+def propagate_shots(store_url: str, inputs: dict[str, ArtifactRef], params: dict,
+                    smpl_model: str | None = None) -> ArtifactRef:
     """Every shot's cameras and people in the world frame (inputs: ``shots``, ``tracks_k``, ``trajectory_k``,
     ``aligned_c``)."""
     def compute():
@@ -98,13 +108,15 @@ def propagate_shots(store_url: str, inputs: dict[str, ArtifactRef], params: dict
         shots = load(inputs["shots"])
         trajectories = [load(inputs[f"trajectory_{k}"]) for k in range(shots.num_shots)]
         return propagate(shots, _tracks(inputs, shots.num_shots), trajectories, _aligned(inputs, shots.num_shots),
-                         load_body_model(), **params)
+                         load_body_model(smpl_model), **without_body(params))
     return cached_stage("propagate", compute, store_url, params, inputs)
 
 
 @stage_task("reid")
-def reidentify_people(store_url: str, inputs: dict[str, ArtifactRef], params: dict) -> ArtifactRef:
-    """Global identities across cuts (inputs: ``shots``, ``tracks_k``, ``placement``)."""
+def reidentify_people(store_url: str, inputs: dict[str, ArtifactRef], params: dict,
+                      smpl_model: str | None = None) -> ArtifactRef:
+    """Global identities across cuts (inputs: ``shots``, ``tracks_k``, ``placement``). ``smpl_model`` is
+    unused (re-ID poses no bodies): it keeps every method stage's call alike."""
     def compute():
         from multithumbs.method.reid import ReidConfig
         from multithumbs.pipeline import reidentify
@@ -116,7 +128,8 @@ def reidentify_people(store_url: str, inputs: dict[str, ArtifactRef], params: di
 
 
 @stage_task("post")
-def post_process_world(store_url: str, inputs: dict[str, ArtifactRef], params: dict) -> ArtifactRef:
+def post_process_world(store_url: str, inputs: dict[str, ArtifactRef], params: dict,
+                       smpl_model: str | None = None) -> ArtifactRef:
     """Assembly, post-processing and the :class:`WorldResult` (inputs: ``shots``, ``tracks_k``, ``aligned_c``,
     ``placement``, ``identities``)."""
     def compute():
@@ -128,5 +141,6 @@ def post_process_world(store_url: str, inputs: dict[str, ArtifactRef], params: d
         config = MethodConfig(post=_section(PostConfig, params["post"]), skip_post=params["skip_post"],
                               variant=params["variant"])
         return finish_world(shots, _tracks(inputs, shots.num_shots), _aligned(inputs, shots.num_shots),
-                            load(inputs["placement"]), load(inputs["identities"]), load_body_model(), config)
+                            load(inputs["placement"]), load(inputs["identities"]), load_body_model(smpl_model),
+                            config)
     return cached_stage("post", compute, store_url, params, inputs)

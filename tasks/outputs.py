@@ -41,15 +41,18 @@ def world_scene_points(spaces: list[ArtifactRef], method_refs: dict[str, Artifac
 @task(name="outputs", cache_policy=NO_CACHE, retries=1)
 def write_outputs(out_dir: str, name: str, variant: str, video_path: str, method_refs: dict[str, ArtifactRef],
                   spaces: list[ArtifactRef], truth: ArtifactRef | None, metrics: dict[str, Any] | None,
-                  run_info: dict[str, Any]) -> dict[str, str]:
+                  run_info: dict[str, Any], smpl_model: str | None = None) -> dict[str, str]:
     """Write ``result.npz``, ``metrics.json`` (with ground truth), the overlay video, plots, exports and
-    ``report.md`` into ``out_dir``; returns output name -> path."""
+    ``report.md`` into ``out_dir``, meshes posed with ``smpl_model`` (None: the procedural body); returns
+    output name -> path."""
+    from multithumbs.body.model import load_body_model
     from multithumbs.io import save_result
     from multithumbs.viz.outputs import write_video_outputs
 
     out = Path(out_dir)
     stamp_path = out / STAMP_NAME
-    stamp = {"result": method_refs["result"].key, "metrics": metrics, "video": str(video_path)}
+    stamp = {"result": method_refs["result"].key, "metrics": metrics, "video": str(video_path),
+             "body": smpl_model}
     if stamp_path.exists():  # the same result's outputs are already there: a re-run writes nothing
         try:
             previous = json.loads(stamp_path.read_text())
@@ -68,7 +71,7 @@ def write_outputs(out_dir: str, name: str, variant: str, video_path: str, method
     written = write_video_outputs(out, result, video_path, truth=None if truth is None else load(truth),
                                   metrics=metrics, run_info=run_info,
                                   scene_points=world_scene_points(spaces, method_refs) or None,
-                                  title=f"{name} ({variant})")
+                                  body=load_body_model(smpl_model), title=f"{name} ({variant})")
     files.update({k: str(v) for k, v in written.items()})
     stamp_path.write_text(json.dumps({"stamp": stamp, "files": files}, indent=1, sort_keys=True))
     return files

@@ -49,3 +49,31 @@ def test_changing_a_reid_parameter_recomputes_reid_and_what_follows_only(prefect
     reconstruct_synthetic(config_to_json(TINY), str(out), store_url, method={"reid": {"max_distance": 0.8}})
     new = {k: store.record(k)["stage"] for k in store.keys() if k not in before}
     assert sorted(new.values()) == ["post", "reid"]
+
+
+def test_a_user_smpl_file_reaches_every_stage_that_poses_bodies(prefect, tmp_path):
+    """``smpl_model`` is resolved once in the flow; its digest is in the key of every stage that poses
+    bodies, so another file is another set of artifacts (here the procedural body's bytes under another
+    name: the same numbers, new keys)."""
+    import shutil
+
+    from flows.reconstruct import reconstruct_synthetic
+    from multithumbs.body.procedural import procedural_model_path
+    from storage.keys import file_digest
+    from storage.store import ArtifactStore
+
+    user_file = tmp_path / "my_smpl.npz"
+    shutil.copy(procedural_model_path(), user_file)
+    store_url = str(tmp_path / "store")
+    plain = reconstruct_synthetic(config_to_json(TINY), str(tmp_path / "a"), store_url)
+    store = ArtifactStore(store_url)
+    before = set(store.keys())
+    mine = reconstruct_synthetic(config_to_json(TINY), str(tmp_path / "b"), store_url, smpl_model=str(user_file))
+    new = [store.record(k) for k in store.keys() if k not in before]
+    assert {r["stage"] for r in new} == {"simulate_inputs", "align", "propagate", "reid", "post"}
+    digest = file_digest(user_file)
+    for record in new:  # re-ID poses no bodies: it is new only because its inputs are
+        params = record["attributes"]["provenance"]["params"]
+        assert params.get("body") == (None if record["stage"] == "reid" else digest), record["stage"]
+    assert mine["mpjpe"] == pytest.approx(plain["mpjpe"])
+    assert "my_smpl.npz" in (tmp_path / "b" / "report.md").read_text()
