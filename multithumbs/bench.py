@@ -63,18 +63,20 @@ def _alignment_key(config: MethodConfig) -> tuple:
     return (config.independent_shots, config.skip_align, config.align)
 
 
-def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: MethodConfig = MethodConfig(),
-              seed: int = 0) -> SceneScores:
-    """Synthesise one scene, run the variants on shared stages, score them."""
+def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: MethodConfig = MethodConfig(),
+                      seed: int = 0, seconds: dict[str, float] | None = None):
+    """Synthesise one scene and run the variants on shared stages (module docstring).
+
+    Returns:
+        the scene's :class:`~multithumbs.types.GroundTruth` and variant -> its
+        :class:`~multithumbs.types.WorldResult`; ``seconds`` (when given) receives each variant's wall time.
+    """
     import time
 
-    from multithumbs.body.model import load_body_model
-    from multithumbs.metrics.evaluate import evaluate
     from multithumbs.synth.perception import simulate_perception
     from multithumbs.synth.scene import synthesize
     from multithumbs.synth.simulated_geometry import simulate_camera_trajectory, simulate_shared_space
 
-    body = load_body_model()
     video = synthesize(config, body)
     shots = video.truth.world.shots()
     tracks = simulate_perception(video, body, seed=seed)
@@ -84,7 +86,7 @@ def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: Met
     aligned_cache: dict[tuple, list] = {}
     placement_cache: dict[tuple, Placement] = {}
     world_cache: dict[tuple, tuple] = {}
-    metrics, seconds, labels = {}, {}, {}
+    results = {}
     for name in variants:
         cfg = variant_config(name, base)
         start = time.perf_counter()
@@ -104,9 +106,24 @@ def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: Met
         if key not in world_cache:
             world_cache[key] = post_processed_world(shots, tracks, placement, ids, body, cfg)
         world, _ = world_cache[key]
-        result = to_world_result(shots, tracks, world, ids, world_diagnostics(aligned, placement, ids))
-        seconds[name] = time.perf_counter() - start
-        metrics[name], labels[name] = scene_metrics(evaluate(result, video.truth, body))
+        results[name] = to_world_result(shots, tracks, world, ids, world_diagnostics(aligned, placement, ids))
+        if seconds is not None:
+            seconds[name] = time.perf_counter() - start
+    return video.truth, results
+
+
+def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: MethodConfig = MethodConfig(),
+              seed: int = 0) -> SceneScores:
+    """Synthesise one scene, run the variants on shared stages, score them."""
+    from multithumbs.body.model import load_body_model
+    from multithumbs.metrics.evaluate import evaluate
+
+    body = load_body_model()
+    seconds: dict[str, float] = {}
+    truth, results = run_scene_results(config, variants, body, base, seed, seconds)
+    metrics, labels = {}, {}
+    for name, result in results.items():
+        metrics[name], labels[name] = scene_metrics(evaluate(result, truth, body))
     return SceneScores(config.name, metrics, seconds, labels)
 
 
