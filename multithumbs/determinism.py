@@ -2,7 +2,7 @@
 
 CPU torch splits reductions and matrix products across its intra-op threads, and the split changes the
 rounding: the float32 body model's vertices differ by ~1e-7 between one and two threads, and the view
-registration and alignment carry such differences to 1e-4 of the ATE (docs/RESULTS.md, "Determinism").
+registration and alignment carry such differences to 1e-4 of the ATE (tests/flows/test_resume.py failed so).
 A content-addressed store needs the same inputs to give the same bytes, so every stage computes with the
 same count, set in the computing thread itself.
 
