@@ -141,9 +141,9 @@ def _float(value) -> float:
 
 
 def _init_worker(threads: int) -> None:
-    import torch
+    from multithumbs.determinism import fix_threads
 
-    torch.set_num_threads(threads)
+    fix_threads(threads)
 
 
 def run_suite(configs: Sequence[SceneConfig], variants: Sequence[str] = VARIANTS, workers: int | None = None,

@@ -18,9 +18,10 @@ from storage.codecs import decode, encode
 from storage.keys import artifact_key
 from storage.store import ArtifactRef, ArtifactStore, CorruptArtifact
 
-STAGE_VERSIONS = {"simulate_inputs": 1, "ground_truth": 1, "shots": 2, "perception": 1, "trajectory": 1, "space": 1,
-                  "align": 3, "propagate": 2, "reid": 1, "post": 1}
-"""Bump a stage's version when its code changes its output: its key and every key after it change."""
+STAGE_VERSIONS = {"simulate_inputs": 2, "ground_truth": 1, "shots": 2, "perception": 2, "trajectory": 2, "space": 2,
+                  "align": 4, "propagate": 3, "reid": 1, "post": 2}
+"""Bump a stage's version when its code changes its output: its key and every key after it change.
+(Torch stages bumped together when every stage came to compute with one thread, :func:`compute_fixed`.)"""
 
 
 @functools.lru_cache(maxsize=8)
@@ -56,9 +57,19 @@ def cached_stage(stage: str, compute: Callable[[], Any], store_url: str, params:
             return ArtifactRef(key, stage, store_url)
         except CorruptArtifact:
             store.delete(key)
-    arrays, attributes = encode(compute())
+    arrays, attributes = encode(compute_fixed(compute))
     attributes["provenance"] = {"params": params, "inputs": {k: r.key for k, r in inputs.items()}}
     return store.write(key, stage, arrays, attributes)
+
+
+def compute_fixed(compute: Callable[[], Any]) -> Any:
+    """``compute()`` with the one thread count every stage computes with, set in this (the task runner's)
+    thread: the results' rounding depends on it, and a key must always mean the same bytes
+    (:mod:`multithumbs.determinism`)."""
+    from multithumbs.determinism import fix_threads
+
+    fix_threads()
+    return compute()
 
 
 def _retry_on_io(task, task_run, state) -> bool:

@@ -19,7 +19,7 @@ from prefect.cache_policies import NO_CACHE
 from storage.codecs import encode
 from storage.keys import artifact_key
 from storage.store import ArtifactRef, CorruptArtifact
-from tasks.artifacts import STAGE_VERSIONS, cached_stage, load, open_store, stage_key, stage_task
+from tasks.artifacts import STAGE_VERSIONS, cached_stage, compute_fixed, load, open_store, stage_key, stage_task
 
 
 @task(name="simulate_inputs", cache_policy=NO_CACHE, retries=1)
@@ -47,11 +47,13 @@ def simulate_inputs(store_url: str, scene: dict, out_dir: str | None = None, smp
         return {n: ArtifactRef(k, "simulate_inputs", store_url) for n, k in keys.items()}
 
     from multithumbs.body.model import load_body_model
+    from multithumbs.determinism import fix_threads
     from multithumbs.synth.files import write_synthetic
     from multithumbs.synth.perception import simulate_perception
     from multithumbs.synth.scene import synthesize
     from multithumbs.synth.simulated_geometry import simulate_camera_trajectory, simulate_shared_space
 
+    fix_threads()  # the rounding depends on the thread count (tasks.artifacts.compute_fixed)
     body_model = load_body_model(smpl_model)
     video = synthesize(config, body_model)
     if out_dir is not None:
@@ -87,7 +89,7 @@ def _parts(stage: str, compute: Callable[[], list], store_url: str, params: dict
             return [ArtifactRef(k, stage, store_url) for k in keys]
         except CorruptArtifact:
             pass
-    values = compute()
+    values = compute_fixed(compute)
     if len(values) != count:
         raise RuntimeError(f"stage {stage}: computed {len(values)} parts, expected {count}")
     refs = []

@@ -35,7 +35,6 @@ scene, and a weak prior on the cameras fixes the gauge this leaves. Points obser
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -43,6 +42,7 @@ import torch
 from scipy import ndimage
 from scipy.optimize import least_squares
 
+from multithumbs.determinism import fix_threads
 from multithumbs.geometry import (axis_angle_to_matrix, camera_centre, matrix_to_axis_angle, project,
                                   vertex_normals)
 from multithumbs.method.scale import depth_ratio_scale, mesh_to_points_scale
@@ -81,8 +81,9 @@ class AlignConfig:
             reproject onto its 2D keypoints (:func:`fit_pelvis_to_keypoints`) before comparing depths, so
             the scale follows the meshes' metric size and not the estimator's depth, which monocular
             estimators get wrong by a per-track factor (False: the estimator's depth, as before).
-        threads: torch intra-op threads of the alignment, its setup and optimisation loop (0: leave
-            torch's setting); see :func:`torch_threads`.
+        threads: torch intra-op threads of the alignment, its setup and optimisation loop, set for good with
+            :func:`multithumbs.determinism.fix_threads` (0: leave torch's setting). The result's rounding
+            depends on the count, so it is fixed, never toggled and restored (that raced across threads).
         points_follow_cameras: points observed in one boundary frame only move with that frame's camera
             in stage 3 (module docstring); False for point maps predicted in the world directly (VGGT's
             point head), which stay fixed while the cameras move, as in the paper.
@@ -341,10 +342,12 @@ def _camera_frame_roots(people: BoundaryPeople, R: np.ndarray, t: np.ndarray) ->
 def align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignConfig = AlignConfig(),
                    skip: bool = False) -> AlignedBoundary:
     """Place the boundary people of one cut in its shared space (``skip=True``: the ``no_align`` ablation)."""
-    # The setup's tensor ops are small too: on a busy machine a second thread's wake-up cost 15 ms per
+    # One count for the result's rounding (multithumbs.determinism). One thread is also the faster: the
+    # setup's tensor ops are small too, and on a busy machine a second thread's wake-up cost 15 ms per
     # 3802 x 3 product (the scale's visible-vertex projections), longer than the product itself.
-    with torch_threads(config.threads):
-        return _align_boundary(people, space, config, skip)
+    if config.threads > 0:
+        fix_threads(config.threads)
+    return _align_boundary(people, space, config, skip)
 
 
 def _align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignConfig, skip: bool) -> AlignedBoundary:
@@ -405,23 +408,6 @@ def _stage1_roots(people: BoundaryPeople, maps: np.ndarray, valid: np.ndarray, f
             if (xs[nearest] - uv[0]) ** 2 + (ys[nearest] - uv[1]) ** 2 <= 15 ** 2:
                 pelvis[k, p] = maps[k, ys[nearest], xs[nearest]]
     return pelvis
-
-
-@contextlib.contextmanager
-def torch_threads(count: int):
-    """Run the block with ``count`` torch intra-op threads (0: leave the setting alone), then restore it.
-
-    The method's optimisation loops run thousands of small tensor ops: splitting each across threads
-    costs more in synchronisation than it saves (benchmarks/method.py, 150 frames: 21.4 s with 2 threads,
-    19.0 s with one).
-    """
-    before = torch.get_num_threads()
-    if count > 0:
-        torch.set_num_threads(count)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
 
 
 DTYPE = torch.float64

@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from multithumbs.conventions import NUM_JOINTS
-from multithumbs.method.align import torch_threads
+from multithumbs.determinism import fix_threads
 
 
 @dataclass(frozen=True)
@@ -58,8 +58,8 @@ class PostConfig:
         smooth_order: 1 penalises joint velocity ``‖J_t − J_{t+1}‖²`` (the paper's term); 2 penalises
             acceleration ``‖J_{t−1} − 2J_t + J_{t+1}‖²``, which leaves steady walking and the ends of a
             track alone (first differences pull a track's ends inwards and slow every walk).
-        threads: torch intra-op threads of the optimisation loop (0: leave torch's setting); see
-            :func:`multithumbs.method.align.torch_threads`.
+        threads: torch intra-op threads of the optimisation loop, set for good (0: leave torch's setting);
+            see :func:`multithumbs.determinism.fix_threads`.
     """
 
     iterations: int = 300
@@ -132,8 +132,9 @@ def _windows(valid: np.ndarray, cut_frames: np.ndarray, matched_at_cut: np.ndarr
 
 def post_process(data: PostInput, body, config: PostConfig = PostConfig(), vposer=None) -> PostOutput:
     """Refine all people's world SMPL parameters jointly (see the module docstring)."""
-    with torch_threads(config.threads):
-        return _post_process(data, body, config, vposer)
+    if config.threads > 0:  # one count, one rounding (multithumbs.determinism)
+        fix_threads(config.threads)
+    return _post_process(data, body, config, vposer)
 
 
 def _post_process(data: PostInput, body, config: PostConfig, vposer) -> PostOutput:

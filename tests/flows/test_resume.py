@@ -9,7 +9,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from multithumbs.synth.scene import config_to_json
 from tests.flows.conftest import TINY
@@ -65,15 +64,12 @@ def test_sigkill_during_alignment_then_resume_equals_uninterrupted(prefect, tmp_
     fresh_out = tmp_path / "uninterrupted"
     fresh_out.mkdir()
     uninterrupted = reconstruct_synthetic(scene, str(fresh_out), str(tmp_path / "fresh_store"))
-    # Equal up to the float noise of CPU torch's threaded reductions (not bitwise across runs).
+    # Bitwise equal: every stage computes with one fixed thread count (multithumbs.determinism), so the
+    # inputs the killed child wrote and the ones computed here, and everything after them, are the same bytes.
     assert resumed.keys() == uninterrupted.keys() and resumed["ids"] == uninterrupted["ids"]
     for key, value in resumed.items():
         if isinstance(value, float):
-            assert value == pytest.approx(uninterrupted[key], rel=1e-4, abs=1e-6), key
+            assert value == uninterrupted[key] or (np.isnan(value) and np.isnan(uninterrupted[key])), key
     a, b = load_result(out / "result.npz"), load_result(fresh_out / "result.npz")
-    for name in ("global_orient", "body_pose", "transl", "R", "t"):
-        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-4, atol=1e-5, err_msg=name)
-    # Shape coefficients the keypoints barely determine take AdamW's full step either way on that noise;
-    # 1e-3 of a coefficient moves the mesh by micrometres.
-    np.testing.assert_allclose(a.betas, b.betas, atol=1e-3, err_msg="betas")
-    np.testing.assert_array_equal(a.id_map, b.id_map)
+    for name in ("global_orient", "body_pose", "betas", "transl", "R", "t", "id_map"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)

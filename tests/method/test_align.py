@@ -92,18 +92,20 @@ def test_space_scale_does_not_inherit_the_estimators_depth_error(tiny, body):
     assert abs(fitted * s - 1) < 0.01  # ... the meshes' size does not carry it
 
 
-def test_torch_threads_are_restored():
-    import pytest
+def test_alignment_fixes_the_thread_count_for_the_process_and_new_threads():
+    """No scoped set-and-restore: a new thread copies the process's count, so it must not depend on timing."""
+    import threading
+
     import torch
 
-    from multithumbs.method.align import torch_threads
-    before = torch.get_num_threads()
-    with torch_threads(1):
-        assert torch.get_num_threads() == 1
-    assert torch.get_num_threads() == before
-    with pytest.raises(RuntimeError), torch_threads(1):
-        raise RuntimeError("boom")
-    assert torch.get_num_threads() == before
+    from multithumbs.determinism import fix_threads
+    fix_threads(1)
+    seen = []
+    worker = threading.Thread(target=lambda: (torch.ones(10 ** 6).sum(), seen.append(torch.get_num_threads())))
+    worker.start()
+    worker.join()
+    assert torch.get_num_threads() == 1 and seen == [1]
+    assert torch.are_deterministic_algorithms_enabled()
 
 
 def test_rotation_matches_roma_at_every_angle():
