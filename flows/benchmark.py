@@ -53,7 +53,7 @@ def benchmark(suite: str = "standard", variants: Sequence[str] | None = None, sc
         runner, workers: task runner (:func:`flows.runners.make_task_runner`).
         scene_configs: scenes as SceneConfig JSON instead of a suite's (``suite`` and ``scenes`` then unused).
     """
-    from multithumbs.bench import METRIC_KEYS, check_variants
+    from multithumbs.bench import EXTRA_KEYS, METRIC_KEYS, check_variants
     from multithumbs.pipeline import VARIANTS
     from multithumbs.synth.scene import config_to_json
     from multithumbs.synth.suite import suite as suite_configs, suite_scene
@@ -65,10 +65,13 @@ def benchmark(suite: str = "standard", variants: Sequence[str] | None = None, sc
         configs = [config_to_json(c) for c in
                    ([suite_scene(suite, s) for s in scenes] if scenes else suite_configs(suite))]
     summary = _benchmark_run.with_options(task_runner=make_task_runner(runner, workers))(configs, variants, store_url)
-    rows = [{"variant": v, **{k: summary[v][k]["mean"] for k in METRIC_KEYS}} for v in variants]
+    columns = (*METRIC_KEYS, *EXTRA_KEYS)
+    rows = [{"variant": v, **{k: summary[v][k]["mean"] for k in columns}, "ate_alignment": _alignments(summary[v])}
+            for v in variants]
     create_table_artifact(key="benchmark", table=rows, description=f"suite {suite}: means over {len(configs)} scenes")
-    lines = ["| variant | " + " | ".join(METRIC_KEYS) + " |", "|---|" + "---|" * len(METRIC_KEYS)]
-    lines += ["| " + r["variant"] + " | " + " | ".join(f"{r[k]:.2f}" for k in METRIC_KEYS) + " |" for r in rows]
+    lines = ["| variant | " + " | ".join(columns) + " | ate_alignment |", "|---|" + "---|" * (len(columns) + 1)]
+    lines += ["| " + r["variant"] + " | " + " | ".join(f"{r[k]:.2f}" for k in columns) + f" | {r['ate_alignment']} |"
+              for r in rows]
     markdown = (f"# Benchmark `{suite}` ({len(configs)} scenes)\n\nPerception, shared space and camera tracking "
                 f"SIMULATED; cuts from ground truth.\n\n" + "\n".join(lines) + "\n")
     create_markdown_artifact(key="benchmark-report", markdown=markdown)
@@ -77,3 +80,11 @@ def benchmark(suite: str = "standard", variants: Sequence[str] | None = None, sc
     (out / "bench.json").write_text(json.dumps(summary, indent=2, default=str))
     (out / "bench.md").write_text(markdown)
     return summary
+
+
+def _alignments(variant_summary: dict[str, Any]) -> str:
+    """How the scenes' ATE were aligned, counted: e.g. ``sim3_camera_centres: 4, sim3_people_joints: 8``."""
+    counts: dict[str, int] = {}
+    for label in variant_summary.get("ate_alignment", {}).get("per_scene", {}).values():
+        counts[str(label)] = counts.get(str(label), 0) + 1
+    return ", ".join(f"{k}: {n}" for k, n in sorted(counts.items()))
