@@ -7,7 +7,7 @@ propagation setting, one post-processing per distinct placement, identities and 
 score each with :func:`multithumbs.metrics.evaluate.evaluate`. Scenes run in parallel worker processes.
 
 Aggregation over scenes: pose errors (W-MPJPE, WA-MPJPE, MPJPE, PA-MPJPE, MPVPE, Accel and their
-``_track``/``_world`` variants, FS with truth) are weighted by each scene's scored frames (METRICS.md);
+``_track``/``_world`` variants, FS with truth) are weighted by each scene's scored frames (docs/METRICS.md);
 ATE, IDs, PCK*, Jitter and FS are means over scenes (ATE per sequence as DROID-SLAM and TRAM), and the
 switch counts also have a total.
 """
@@ -28,7 +28,7 @@ from multithumbs.pipeline import (VARIANTS, MethodConfig, Placement, align_cuts,
 from multithumbs.synth.scene import SceneConfig
 
 METRIC_KEYS = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "ate", "ids", "pck", "jitter", "fs")
-"""The headline metrics in the paper's order, with the field's meaning (METRICS.md)."""
+"""The headline metrics in the paper's order, with the field's meaning (docs/METRICS.md)."""
 EXTRA_KEYS = ("w_mpjpe_track", "wa_mpjpe_track", "accel_world", "fs_gt", "fs_truth", "ate_mean", "ids_total",
               "ids_within_shots", "coverage")
 """This project's own variants and diagnostics, reported beside the headline metrics."""

@@ -127,7 +127,7 @@ def evaluate_cmd(
     as_json: bool = typer.Option(False, "--json", help="Print all metrics as JSON."),
     smpl_model: Optional[Path] = SMPL_OPTION,
 ) -> None:
-    """Score a result against ground truth with every metric of METRICS.md."""
+    """Score a result against ground truth with every metric of docs/METRICS.md."""
     from multithumbs.body.model import load_body_model
     from multithumbs.io import load_ground_truth, load_result
     from multithumbs.metrics.evaluate import evaluate

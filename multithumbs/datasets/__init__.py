@@ -1,5 +1,5 @@
 """Real datasets: multi-view captures with SMPL ground truth, the multi-shot benchmark built from them,
-and edited real videos for the GT-free metrics. Formats: ``../shared/DATASETS.md``.
+and edited real videos for the GT-free metrics. Formats: ``docs/FORMATS.md``.
 
 - :mod:`~multithumbs.datasets.cameras`: calibrated cameras (fisheye / radial distortion through OpenCV).
 - :mod:`~multithumbs.datasets.sequence`: :class:`MultiViewSequence`, :class:`PeopleSeries`.

@@ -1,4 +1,4 @@
-"""Metrics of METRICS.md: pose, camera, identity and ground-truth-free, and the evaluation that runs them all.
+"""Metrics of docs/METRICS.md: pose, camera, identity and ground-truth-free, and the evaluation that runs them all.
 
 Low-level functions take numpy arrays in metres (``(P, T, 24, 3)`` joints with ``valid (P, T)``
 masks) and return :class:`Samples` so sequences pool frame-weighted; :func:`evaluate` and

@@ -1,4 +1,4 @@
-"""Shared machinery of the metrics (METRICS.md "Shared machinery").
+"""Shared machinery of the metrics (docs/METRICS.md "Shared machinery").
 
 Masked per-sample values, the pelvis, Umeyama similarity fits over masked points and per chunk of a
 track's valid frames, the compression of valid frames (:class:`ValidFrames`, as WHAM/GVHMR), frame

@@ -1,4 +1,4 @@
-"""Camera metric (METRICS.md "ATE"): absolute trajectory error of the camera centres after Sim(3) alignment.
+"""Camera metric (docs/METRICS.md "ATE"): absolute trajectory error of the camera centres after Sim(3) alignment.
 
 Agrees with evo's APE (translation part, ``align=True, correct_scale=True``). When the centres cannot
 fix a rotation (static cameras per shot give at most two distinct centres: cross-covariance rank < 2),

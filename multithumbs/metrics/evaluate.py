@@ -1,4 +1,4 @@
-"""Score a reconstruction against ground truth with every metric of METRICS.md.
+"""Score a reconstruction against ground truth with every metric of docs/METRICS.md.
 
 Coordinate frames, since the predicted world frame is arbitrary:
 
@@ -57,7 +57,7 @@ PCK_ALPHA_STRICT = 0.05
 
 @dataclass(frozen=True)
 class EvaluationOptions:
-    """Every open choice of the evaluation, with METRICS.md's defaults; the report echoes them.
+    """Every open choice of the evaluation, with docs/METRICS.md's defaults; the report echoes them.
 
     Attributes:
         chunk: valid frames per re-alignment chunk of the headline ``w_mpjpe`` / ``wa_mpjpe`` (100 as
@@ -406,7 +406,7 @@ def _mean_of_finite(values: Sequence[float]) -> float:
 
 
 def evaluate(result: WorldResult, truth: GroundTruth, body_model: Any, **options: Any) -> dict[str, Any]:
-    """Score one reconstruction against its ground truth with every metric of METRICS.md.
+    """Score one reconstruction against its ground truth with every metric of docs/METRICS.md.
 
     Args:
         result: the reconstruction (any world frame).

@@ -1,4 +1,4 @@
-"""Metrics that need no ground truth (METRICS.md): cross-shot PCK*, Jitter and height-based foot sliding.
+"""Metrics that need no ground truth (docs/METRICS.md): cross-shot PCK*, Jitter and height-based foot sliding.
 
 They read only a reconstruction: world joints ``(P, T, 24, 3)`` in metres, ``valid (P, T)``, its
 cameras and the detector's 2D keypoints. Each returns :class:`Samples` so sequences pool.

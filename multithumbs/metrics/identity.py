@@ -1,4 +1,4 @@
-"""Identity metric (METRICS.md "IDs"): CLEAR-MOT identity switches, as TrackEval counts them.
+"""Identity metric (docs/METRICS.md "IDs"): CLEAR-MOT identity switches, as TrackEval counts them.
 
 Per frame, true people are associated with predictions the way TrackEval's CLEAR metric does
 (``trackeval/metrics/clear.py``, the MOTChallenge evaluator): a similarity matrix (2D box IoU, or when

@@ -1,4 +1,4 @@
-"""Pose metrics against ground truth (METRICS.md): W-MPJPE, WA-MPJPE, MPJPE, PA-MPJPE, MPVPE, Accel, FS.
+"""Pose metrics against ground truth (docs/METRICS.md): W-MPJPE, WA-MPJPE, MPJPE, PA-MPJPE, MPVPE, Accel, FS.
 
 Inputs are numpy arrays in metres: joints ``(P, T, 24, 3)``, vertices ``(P, T, V, 3)``, ``valid (P, T)``
 (the frames to score). Every function returns :class:`Samples` in millimetres, except :func:`accel`
