@@ -35,6 +35,6 @@ __all__ = [
     "CrossShotPck", "cross_shot_pck", "estimate_up", "foot_points", "foot_sliding", "jitter",
     "IdSwitches", "associate_by_distance", "associate_by_iou", "box_iou", "count_id_switches",
     "clear_mot_match", "projected_boxes",
-    "WORLD_CHUNK", "accel", "accel_world", "foot_sliding_against_truth", "mpjpe", "mpvpe", "pa_mpjpe", "w_mpjpe", "wa_mpjpe",
-    "world_aligned",
+    "WORLD_CHUNK", "accel", "accel_world", "foot_sliding_against_truth", "mpjpe", "mpvpe", "pa_mpjpe",
+    "w_mpjpe", "wa_mpjpe", "world_aligned",
 ]
