@@ -88,8 +88,8 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
                                                        "config": dataclasses.asdict(ShotConfig(**(shots or {})))}, video)
     lap("shot detection")
     tracks = perceive_people(store_url, {"shots": shots_ref},
-                             {"video": digest, "spec": spec_fingerprint(perception), "trust": trust_pickle},
-                             video, perception)
+                             {"video": digest, "spec": spec_fingerprint(perception), "trust": trust_pickle, "K": K,
+                              **body}, video, perception, body_path)
     lap("perception")
     tracking_config = dataclasses.asdict(TrackingConfig(**(tracking or {})))
     trajectories = [f.result() for f in [

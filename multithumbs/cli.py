@@ -70,13 +70,13 @@ def synth(
         video = synthesize(config, body, progress=lambda done, total: bar.update(task, completed=done))
     paths = write_synthetic(out_dir, video)
     truth = video.truth
-    from multithumbs.perception.phalp import export_phalp
+    from multithumbs.perception.phalp_export import export_phalp
     from multithumbs.synth.perception import simulate_perception
 
     # SIMULATED perception in 4DHumans/PHALP's format: `multithumbs run video.mp4 --perception phalp:...`.
     simulated = simulate_perception(video, body)
-    paths["perception"] = export_phalp(out_dir / "perception.pkl", simulated, truth.world.shots(), overwrite=True,
-                                       rest_pelvis=[body.rest_pelvis(tr.betas) for tr in simulated])
+    paths["perception"] = export_phalp(out_dir / "perception.pkl", simulated, truth.world.shots(), body,
+                                       overwrite=True)
     console.print(f"[bold]{config.name or 'scene'}[/]: {config.num_people} people, {config.num_shots} shots, "
                   f"{config.num_frames} frames, cuts at {truth.world.cut_frames.tolist()}, "
                   f"{int(truth.visible.sum())} visible person-frames")
