@@ -15,7 +15,7 @@ values):
 * ``camera``: ``(3,)`` camera-frame translation of the SMPL body (HMR2's camera, :mod:`.camera`);
 * ``bbox``: ``(4,)`` ``x, y, w, h`` pixels; ``mask``: COCO run-length encodings (``pycocotools``);
 * ``2d_joints``: ``(90,)`` HMR2's 45 joints PROJECTED through HMR2's own camera (focal 5000 on the padded
-  256-px square) and divided by 256 (``phalp/models/hmar/hmar.py:119-131``, ``PHALP.py:422``): the
+  256-px square) and divided by 256 (``phalp/models/hmar/hmar.py:119-131``, ``PHALP.py:430``): the
   mesh's joints, not what a keypoint detector saw;
 * ``appe``: ``(4096,)`` PHALP's appearance code of the UV texture map; ``size``: ``[H, W]``; and more
   (``center``, ``scale``, ``conf``, ``3d_joints``, ``loca``, ``pose``...) that the import does not need.
