@@ -91,7 +91,7 @@ def parse_spec(spec: str) -> list[SpecTerm]:
     return terms
 
 
-def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool = False, device: str = "cpu",
+def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool = False, device: str = "auto",
                     appearance: bool = True, first_frame_number: int = 1, progress=None,
                     intrinsics: np.ndarray | None = None, model_keypoints: str = "reproject",
                     body=None) -> list[PersonTracks]:
@@ -102,7 +102,8 @@ def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool
         video_path: the video the results belong to (frames are read for refiners and appearance).
         shots: the video's shots; tracks are split at its cuts.
         trust: allow loading a pickle (``phalp:``), which runs code stored in the file.
-        device: torch device of learned backends.
+        device: torch device of learned backends; ``"auto"``: CUDA when present
+            (:func:`multithumbs.perception.hmr2.select_device`).
         appearance: describe appearance from pixels (off: appearance stays empty and invalid).
         first_frame_number: the number in the name of the video's first frame, for PHALP frames without
             ``time`` (PHALP's extractor counts from 1).
@@ -126,6 +127,10 @@ def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool
     step = (lambda stage: (lambda done, total: progress(stage, done, total))) if progress else (lambda stage: None)
     source = terms[0]
     uv = uv_valid = None
+    if source.backend == "hmr2" or len(terms) > 1:
+        from multithumbs.perception.hmr2 import select_device
+
+        device = select_device(device)
     if source.backend == "phalp":
         from multithumbs.perception.phalp import load_phalp
 
