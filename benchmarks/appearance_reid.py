@@ -70,7 +70,7 @@ def _scene(name: str) -> tuple:
     torch.set_num_threads(1)
     from multithumbs.body.model import load_body_model
     from multithumbs.perception import load_perception
-    from multithumbs.perception.phalp import export_phalp
+    from multithumbs.perception.phalp_export import export_phalp
     from multithumbs.synth.files import write_video
     from multithumbs.synth.perception import simulate_perception
     from multithumbs.synth.scene import synthesize
@@ -83,8 +83,7 @@ def _scene(name: str) -> tuple:
     simulated = simulate_perception(video, body)
     with tempfile.TemporaryDirectory() as tmp:
         path = write_video(Path(tmp) / "video.mp4", video.frames, config.fps)
-        pkl = export_phalp(Path(tmp) / "results.pkl", simulated, shots,
-                           rest_pelvis=[body.rest_pelvis(tr.betas) for tr in simulated])
+        pkl = export_phalp(Path(tmp) / "results.pkl", simulated, shots, body)
         imported = load_perception(f"phalp:{pkl}", path, shots, trust=True)
     return (name, _links(imported, video, shots, body, config.dressed_alike),
             _links(simulated, video, shots, body, config.dressed_alike))

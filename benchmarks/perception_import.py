@@ -22,7 +22,8 @@ def main() -> None:
 
     from multithumbs.body.model import load_body_model
     from multithumbs.perception.appearance import fill_appearance
-    from multithumbs.perception.phalp import export_phalp, load_phalp
+    from multithumbs.perception.phalp import load_phalp
+    from multithumbs.perception.phalp_export import export_phalp
     from multithumbs.synth.files import write_video
     from multithumbs.synth.perception import simulate_perception
     from multithumbs.synth.scene import synthesize
@@ -40,7 +41,7 @@ def main() -> None:
         for r in range(args.repeats):
             pkl = Path(tmp) / f"results{r}.pkl"
             start = time.perf_counter()
-            export_phalp(pkl, tracks, shots)
+            export_phalp(pkl, tracks, shots, body)
             times["export"].append(time.perf_counter() - start)
             start = time.perf_counter()
             imported = load_phalp(pkl, shots, config.image_size, trust=True)

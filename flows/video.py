@@ -41,7 +41,7 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
                       method: dict[str, Any] | None = None, truth: str | None = None,
                       shots: dict[str, Any] | None = None, tracking: dict[str, Any] | None = None,
                       two_view: dict[str, Any] | None = None, cuts: list[int] | None = None,
-                      smpl_model: str | None = None) -> dict[str, Any]:
+                      smpl_model: str | None = None, device: str = "auto") -> dict[str, Any]:
     """Reconstruct the people of an edited video in one world frame; write the result, pictures, exports and
     report to ``out_dir`` (and metrics when ``truth`` is given).
 
@@ -88,8 +88,8 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
                                                        "config": dataclasses.asdict(ShotConfig(**(shots or {})))}, video)
     lap("shot detection")
     tracks = perceive_people(store_url, {"shots": shots_ref},
-                             {"video": digest, "spec": spec_fingerprint(perception), "trust": trust_pickle},
-                             video, perception)
+                             {"video": digest, "spec": spec_fingerprint(perception), "trust": trust_pickle, "K": K,
+                              **body}, video, perception, body_path, device)
     lap("perception")
     tracking_config = dataclasses.asdict(TrackingConfig(**(tracking or {})))
     trajectories = [f.result() for f in [

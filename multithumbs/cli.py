@@ -70,13 +70,13 @@ def synth(
         video = synthesize(config, body, progress=lambda done, total: bar.update(task, completed=done))
     paths = write_synthetic(out_dir, video)
     truth = video.truth
-    from multithumbs.perception.phalp import export_phalp
+    from multithumbs.perception.phalp_export import export_phalp
     from multithumbs.synth.perception import simulate_perception
 
     # SIMULATED perception in 4DHumans/PHALP's format: `multithumbs run video.mp4 --perception phalp:...`.
     simulated = simulate_perception(video, body)
-    paths["perception"] = export_phalp(out_dir / "perception.pkl", simulated, truth.world.shots(), overwrite=True,
-                                       rest_pelvis=[body.rest_pelvis(tr.betas) for tr in simulated])
+    paths["perception"] = export_phalp(out_dir / "perception.pkl", simulated, truth.world.shots(), body,
+                                       overwrite=True)
     console.print(f"[bold]{config.name or 'scene'}[/]: {config.num_people} people, {config.num_shots} shots, "
                   f"{config.num_frames} frames, cuts at {truth.world.cut_frames.tolist()}, "
                   f"{int(truth.visible.sum())} visible person-frames")
@@ -196,6 +196,8 @@ def run_cmd(
                                    "results), 'hmr2', optionally '+vitpose' '+sam' refiners."),
     trust_pickle: bool = typer.Option(False, "--trust-pickle", help="Allow loading pickled results (pickles run "
                                       "code when loaded: only for files you trust)."),
+    device: str = typer.Option("auto", "--device", help="Torch device of the learned perception backends (hmr2, "
+                               "vitpose, sam): auto (CUDA when present), cpu, cuda, cuda:N."),
     intrinsics: Optional[str] = typer.Option(None, "--intrinsics", help="fx,fy,cx,cy of the camera in pixels "
                                              "(default: a 60 degree horizontal field of view)."),
     truth: Optional[Path] = typer.Option(None, "--truth", help="Ground truth .npz to score against."),
@@ -228,6 +230,10 @@ def run_cmd(
                                  f"trust this file")
     method = _method_overrides(settings)
     method_config(variant, method)
+    if terms[0].backend == "hmr2" or len(terms) > 1:
+        from multithumbs.perception.hmr2 import select_device
+
+        select_device(device)  # --device cuda on a machine without CUDA fails here, in one line
     from multithumbs.body.model import resolve_model_path
 
     resolve_model_path(smpl_model)
@@ -249,7 +255,8 @@ def run_cmd(
         summary = reconstruct_video(str(video.resolve()), str(out_dir.resolve()),
                                     store or str((out_dir / "store").resolve()), perception, trust_pickle, K,
                                     variant, method, None if truth is None else str(truth.resolve()),
-                                    smpl_model=None if smpl_model is None else str(smpl_model.resolve()))
+                                    smpl_model=None if smpl_model is None else str(smpl_model.resolve()),
+                                    device=device)
     if as_json:
         print(json.dumps(_jsonable(summary), indent=2, sort_keys=True))
         return

@@ -532,7 +532,7 @@ def run_video_file(video_path, perception: str, body, intrinsics: np.ndarray | N
         shots = detect_shots(video_path)
     else:
         shots = Shots(np.asarray(cuts, np.int64), info.fps, info.num_frames, np.zeros(info.num_frames), "given")
-    tracks = load_perception(perception, video_path, shots, trust=trust_pickle)
     K = default_intrinsics(info.width, info.height) if intrinsics is None else np.asarray(intrinsics, np.float64)
+    tracks = load_perception(perception, video_path, shots, trust=trust_pickle, intrinsics=K, body=body)
     geometry = scene_geometry(read_frames(video_path), shots, K, np.concatenate([tr.people_mask() for tr in tracks]))
     return run_video(shots, tracks, list(geometry.trajectories), list(geometry.spaces), body, config)

@@ -148,15 +148,22 @@ def given_shots(store_url: str, inputs: dict[str, ArtifactRef], params: dict) ->
 
 @task(name="perception", cache_policy=NO_CACHE, retries=1)
 def perceive_people(store_url: str, inputs: dict[str, ArtifactRef], params: dict, video_path: str,
-                    spec: str) -> list[ArtifactRef]:
+                    spec: str, smpl_model: str | None = None, device: str = "auto") -> list[ArtifactRef]:
     """Per-shot :class:`PersonTracks` from the perception ``spec`` (params: ``video`` digest, ``spec``
-    fingerprint, ``trust``); one artifact per shot."""
+    fingerprint, ``trust``, ``K`` the method's intrinsics that model-derived keypoints are reprojected
+    through, and the ``body`` identity that poses them); one artifact per shot. ``device`` (``"auto"``: CUDA
+    when present) is not part of the key: it changes where the networks run, not what they are."""
     shots = load(inputs["shots"])
 
     def compute():
+        import numpy as np
+
+        from multithumbs.body.model import load_body_model
         from multithumbs.perception import load_perception
 
-        return load_perception(spec, video_path, shots, trust=params["trust"])
+        K = None if params.get("K") is None else np.asarray(params["K"], np.float64)
+        return load_perception(spec, video_path, shots, trust=params["trust"], intrinsics=K,
+                               body=load_body_model(smpl_model), device=device)
     return _parts("perception", compute, store_url, params, inputs, shots.num_shots)
 
 

@@ -91,8 +91,10 @@ def parse_spec(spec: str) -> list[SpecTerm]:
     return terms
 
 
-def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool = False, device: str = "cpu",
-                    appearance: bool = True, frame_offset: int = 0, progress=None) -> list[PersonTracks]:
+def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool = False, device: str = "auto",
+                    appearance: bool = True, first_frame_number: int = 1, progress=None,
+                    intrinsics: np.ndarray | None = None, model_keypoints: str = "reproject",
+                    body=None) -> list[PersonTracks]:
     """Per-shot :class:`PersonTracks` of a video from the perception ``spec`` (module docstring).
 
     Args:
@@ -100,10 +102,19 @@ def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool
         video_path: the video the results belong to (frames are read for refiners and appearance).
         shots: the video's shots; tracks are split at its cuts.
         trust: allow loading a pickle (``phalp:``), which runs code stored in the file.
-        device: torch device of learned backends.
+        device: torch device of learned backends; ``"auto"``: CUDA when present
+            (:func:`multithumbs.perception.hmr2.select_device`).
         appearance: describe appearance from pixels (off: appearance stays empty and invalid).
-        frame_offset: subtracted from PHALP frame numbers (1 when frames were numbered from 1).
+        first_frame_number: the number in the name of the video's first frame, for PHALP frames without
+            ``time`` (PHALP's extractor counts from 1).
         progress: optional ``callable(stage: str, done: int, total: int)``.
+        intrinsics: ``(3, 3)`` the camera the method will use (default: the 60° guess the method uses,
+            :func:`multithumbs.scene.two_view.default_intrinsics`). The keypoints of ``phalp`` and ``hmr2``
+            are HMR2's mesh joints projected through its own camera, and are reprojected through this one
+            (:func:`.model_keypoints.reproject_model_keypoints`) before any refiner replaces them.
+        model_keypoints: what those keypoints become: ``"reproject"`` (default), ``"as_is"`` (HMR2's
+            projections at confidence 1) or ``"none"`` (no 2D evidence); :data:`.model_keypoints.KEYPOINT_MODES`.
+        body: the body model for the reprojection (default: :func:`multithumbs.body.model.load_body_model`).
     Raises:
         InputError: a one-line message naming the spec term, file, field or frame that is wrong.
     """
@@ -116,10 +127,15 @@ def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool
     step = (lambda stage: (lambda done, total: progress(stage, done, total))) if progress else (lambda stage: None)
     source = terms[0]
     uv = uv_valid = None
+    if source.backend == "hmr2" or len(terms) > 1:
+        from multithumbs.perception.hmr2 import select_device
+
+        device = select_device(device)
     if source.backend == "phalp":
         from multithumbs.perception.phalp import load_phalp
 
-        imported = load_phalp(source.argument, shots, info.image_size, trust=trust, frame_offset=frame_offset)
+        imported = load_phalp(source.argument, shots, info.image_size, trust=trust,
+                              first_frame_number=first_frame_number, video_name=Path(video_path).stem)
         tracks, boxes = list(imported.tracks), list(imported.boxes)
         uv, uv_valid = imported.uv_appearance, imported.uv_valid
     elif source.backend == "oracle":
@@ -144,6 +160,18 @@ def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool
                              f"detector")
         tracks, boxes = run_hmr2(video_path, shots, options.get("checkpoint"), options.get("detector"), device,
                                  progress=step("hmr2"))
+    if source.backend in ("phalp", "hmr2"):
+        from multithumbs.perception.model_keypoints import reproject_model_keypoints
+
+        if body is None and model_keypoints == "reproject":
+            from multithumbs.body.model import load_body_model
+
+            body = load_body_model()
+        if intrinsics is None:
+            from multithumbs.scene.two_view import default_intrinsics
+
+            intrinsics = default_intrinsics(info.width, info.height)
+        tracks = reproject_model_keypoints(tracks, intrinsics, body, model_keypoints)
     for term in terms[1:]:
         from multithumbs.perception.transformers_backends import load_sam, load_vitpose, refine_tracks
 

@@ -48,6 +48,104 @@ def require_hmr2() -> Any:
     return hmr2
 
 
+DEVICE_AUTO = "auto"
+"""Device choice meaning CUDA when present, else CPU."""
+
+
+def select_device(requested: str | None = DEVICE_AUTO, cuda_available: bool | None = None) -> str:
+    """The torch device for the learned backends: CUDA when present for ``"auto"``, else what was asked.
+
+    ``cuda_available`` defaults to ``torch.cuda.is_available()`` (a parameter so tests need no GPU).
+
+    Raises:
+        InputError: CUDA asked for on a machine without it, or a device name torch does not know.
+    """
+    import torch
+
+    cuda = torch.cuda.is_available() if cuda_available is None else bool(cuda_available)
+    name = (requested or DEVICE_AUTO).strip().lower()
+    if name == DEVICE_AUTO:
+        return "cuda" if cuda else "cpu"
+    try:
+        kind = torch.device(name).type
+    except RuntimeError:
+        raise InputError(f"--device {requested!r}: not a torch device (auto, cpu, cuda, cuda:N)") from None
+    if kind == "cuda" and not cuda:
+        raise InputError(f"--device {requested!r}: CUDA is not available on this machine "
+                         f"(torch.cuda.is_available() is False); use --device cpu or auto")
+    return name
+
+
+def load_hmr2_model(checkpoint: str | Path) -> tuple[Any, Any]:
+    """HMR2's ``(model, cfg)`` WITHOUT its mesh renderer, which needs EGL/OpenGL even for inference.
+
+    ``hmr2.models.load_hmr2`` builds the model with ``init_renderer=True`` (a pyrender ``Renderer``); the
+    ``HMR2`` class takes ``init_renderer=False``, so the model is built from its config and checkpoint that
+    way (the config is ``model_config.yaml`` two folders above the checkpoint, as ``load_hmr2`` finds it).
+    An hmr2 without that switch falls back to ``load_hmr2``; if that fails for want of a renderer the
+    message says what is missing.
+
+    Raises:
+        InputError: the checkpoint or its config is missing, or the renderer cannot be built.
+    """
+    checkpoint = Path(checkpoint)
+    config = checkpoint.parent.parent / "model_config.yaml"
+    if not checkpoint.is_file():
+        raise InputError(f"perception backend 'hmr2': checkpoint {checkpoint} not found; {INSTALL_HINT}")
+    try:
+        from hmr2.configs import get_config
+        from hmr2.models import HMR2
+    except ImportError as exc:
+        raise InputError(f"perception backend 'hmr2': cannot import hmr2.models/hmr2.configs ({exc}); "
+                         f"{INSTALL_HINT}") from None
+    if not config.is_file():
+        raise InputError(f"perception backend 'hmr2': {config} not found (HMR2 keeps its model_config.yaml two "
+                         f"folders above the checkpoint)")
+    cfg = get_config(str(config), update_cachedir=True)
+    if cfg.MODEL.BACKBONE.TYPE == "vit" and "BBOX_SHAPE" not in cfg.MODEL:
+        # Released ViT checkpoints predate BBOX_SHAPE; HMR2's crops are 192x256 (what load_hmr2 also sets).
+        cfg.defrost()
+        cfg.MODEL.BBOX_SHAPE = [192, 256]
+        cfg.freeze()
+    try:
+        model = HMR2.load_from_checkpoint(str(checkpoint), strict=False, cfg=cfg, init_renderer=False)
+        return model, cfg
+    except TypeError:
+        pass  # an hmr2 without init_renderer: only load_hmr2's path is left
+    from hmr2.models import load_hmr2
+
+    try:
+        return load_hmr2(str(checkpoint))
+    except (ImportError, OSError, RuntimeError, AttributeError) as exc:
+        text = f"{exc.__class__.__name__}: {str(exc).splitlines()[0][:120] if str(exc) else ''}"
+        if any(word in text.lower() for word in ("egl", "opengl", "pyrender", "display", "glx")):
+            raise InputError(f"perception backend 'hmr2': load_hmr2 builds a mesh renderer that needs EGL/OpenGL "
+                             f"and it failed ({text}); install libEGL and set PYOPENGL_PLATFORM=egl, or use an "
+                             f"hmr2 whose HMR2 takes init_renderer=False") from None
+        raise
+
+
+def detector_predictor(cfg: Any, device: str) -> Any:
+    """4D-Humans' ViTDet predictor on ``device``.
+
+    Its detectron2 wrapper (``hmr2/utils/utils_detectron2.py``) moves the detector to CUDA whatever the
+    device; on a machine without CUDA that fails inside the wrapper, and this says so in one line. On a CUDA
+    machine the detector is then moved to ``device``.
+    """
+    from hmr2.utils.utils_detectron2 import DefaultPredictor_Lazy
+
+    try:
+        predictor = detector_predictor(cfg, device)
+    except (AssertionError, RuntimeError) as exc:
+        if "cuda" not in str(exc).lower() and "nvidia" not in str(exc).lower():
+            raise
+        raise InputError("perception backend 'hmr2': 4D-Humans' detectron2 wrapper (hmr2/utils/utils_detectron2.py)"
+                         " puts the ViTDet detector on CUDA and this machine has none; run on a CUDA machine, or "
+                         "import 4DHumans results with phalp:RESULTS.pkl") from None
+    predictor.model.to(device)
+    return predictor
+
+
 def _np(x: Any) -> np.ndarray:
     if hasattr(x, "detach"):
         x = x.detach().cpu().numpy()
@@ -169,7 +267,7 @@ def assemble_tracks(shots: Shots, image_size: tuple[int, int], K: np.ndarray, de
 
 
 def run_hmr2(video: str | Path, shots: Shots, checkpoint: str | None = None, detector: str | None = None,
-             device: str = "cpu", min_score: float = 0.5, batch_size: int = 8,
+             device: str = DEVICE_AUTO, min_score: float = 0.5, batch_size: int = 8,
              progress=None) -> tuple[list[PersonTracks], list[np.ndarray]]:
     """HMR2 on every frame of ``video`` (module docstring); per-shot tracks and boxes.
 
@@ -179,7 +277,7 @@ def run_hmr2(video: str | Path, shots: Shots, checkpoint: str | None = None, det
         checkpoint: HMR2 checkpoint (``.ckpt`` with ``model_config.yaml`` two folders up); default
             ``hmr2.models.DEFAULT_CHECKPOINT`` in 4DHumans' cache.
         detector: local ViTDet weights (``model_final_f05665.pkl``) for detectron2.
-        device: torch device.
+        device: torch device, or ``"auto"``: CUDA when present (:func:`select_device`).
         min_score: person detection threshold (the demo's 0.5).
     """
     require_hmr2()
@@ -196,22 +294,19 @@ def run_hmr2(video: str | Path, shots: Shots, checkpoint: str | None = None, det
     import hmr2
     from detectron2.config import LazyConfig
     from hmr2.datasets.vitdet_dataset import ViTDetDataset
-    from hmr2.models import DEFAULT_CHECKPOINT, load_hmr2
+    from hmr2.models import DEFAULT_CHECKPOINT
     from hmr2.utils import recursive_to
-    from hmr2.utils.utils_detectron2 import DefaultPredictor_Lazy
 
     from multithumbs.video import iter_frames, probe_video
 
-    checkpoint = checkpoint or DEFAULT_CHECKPOINT
-    if not Path(checkpoint).is_file():
-        raise InputError(f"perception backend 'hmr2': checkpoint {checkpoint} not found; {INSTALL_HINT}")
-    model, model_cfg = load_hmr2(checkpoint)
+    device = select_device(device)
+    model, model_cfg = load_hmr2_model(checkpoint or DEFAULT_CHECKPOINT)
     model = model.to(device).eval()
     cfg = LazyConfig.load(str(Path(hmr2.__file__).parent / "configs" / "cascade_mask_rcnn_vitdet_h_75ep.py"))
     cfg.train.init_checkpoint = str(detector)
     for i in range(3):
         cfg.model.roi_heads.box_predictors[i].test_score_thresh = 0.25
-    predictor = DefaultPredictor_Lazy(cfg)
+    predictor = detector_predictor(cfg, device)
     info = probe_video(video)
     if info.num_frames != shots.num_frames:
         raise InputError(f"{video}: {info.num_frames} frames but the shots cover {shots.num_frames}")

@@ -1,16 +1,22 @@
 """4DHumans / PHALP tracking results: import into per-shot :class:`PersonTracks`, and export.
 
 PHALP's ``track.py`` (which 4DHumans runs with HMR2 inside) writes ``results/<video>.pkl`` with
-``joblib.dump``: a dict keyed by frame name (``_DEMO/<video>/img/000000.jpg``, frames numbered from 0 by
-PHALP's frame extractor). Each frame holds ``time``, ``shot`` (1 on a frame where PHALP's own PySceneDetect
-found a cut, else 0), ``frame_path`` and lists over the confirmed tracks of that frame:
+``joblib.dump`` (``phalp/trackers/PHALP.py:264``): a dict keyed by frame name
+(``outputs//_DEMO/<video>/img/000001.jpg``: PHALP's frame extractor numbers frames FROM 1,
+``phalp/utils/utils.py:176``), or by ``(video_path, pts)`` with ``video.extract_video=False``. Each frame
+holds ``time`` (the 0-based index, by which frames are placed), ``shot`` (1 on a frame where PHALP's own
+PySceneDetect found a cut, only with ``detect_shots=True``), ``frame_path`` and lists over the CONFIRMED
+tracks of that frame, including tracks lost for up to 50 frames (ghosts with their last detection's stale
+values):
 
 * ``tid``: track id; ``tracked_ids``: the ids actually detected in this frame (the others are PHALP's
   predictions for tracks it lost for a few frames, not observations; ``tracked_time`` says the same);
 * ``smpl``: ``{"global_orient": (1, 3, 3), "body_pose": (23, 3, 3), "betas": (10,)}`` rotation matrices;
 * ``camera``: ``(3,)`` camera-frame translation of the SMPL body (HMR2's camera, :mod:`.camera`);
 * ``bbox``: ``(4,)`` ``x, y, w, h`` pixels; ``mask``: COCO run-length encodings (``pycocotools``);
-* ``2d_joints``: ``(90,)`` HMR2's 45 projected joints normalised to the zero-padded square frame;
+* ``2d_joints``: ``(90,)`` HMR2's 45 joints PROJECTED through HMR2's own camera (focal 5000 on the padded
+  256-px square) and divided by 256 (``phalp/models/hmar/hmar.py:119-131``, ``PHALP.py:430``): the
+  mesh's joints, not what a keypoint detector saw;
 * ``appe``: ``(4096,)`` PHALP's appearance code of the UV texture map; ``size``: ``[H, W]``; and more
   (``center``, ``scale``, ``conf``, ``3d_joints``, ``loca``, ``pose``...) that the import does not need.
 
@@ -18,8 +24,10 @@ The import splits the video by OUR detected cuts (a :class:`Shots`), not PHALP's
 reported for comparison): a PHALP track that runs through a cut becomes one track in each shot, with the
 same local id. Track ids are PHALP's ``tid``. ``betas`` are averaged over a track's frames in a shot
 (HMR2 predicts them per frame; the contract keeps one shape per track). ``keypoints2d`` are the SMPL
-joints that HMR2's OpenPose joints are (:mod:`.joints`), confidence 1 inside the image and 0 elsewhere;
-ViTPose can replace them (:mod:`.transformers_backends`). Appearance is left empty here and filled from
+joints that HMR2's OpenPose joints are (:mod:`.joints`), confidence 1 inside the image and 0 elsewhere, as
+HMR2's camera projects them; they carry no evidence beyond the 3D, so :func:`multithumbs.perception.load_perception`
+reprojects them through the camera the method will use (:mod:`.model_keypoints`), and ViTPose can replace
+them with detected keypoints (:mod:`.transformers_backends`). Appearance is left empty here and filled from
 pixels by :func:`multithumbs.perception.appearance.fill_appearance`.
 
 Loading a pickle runs code from the file: :func:`read_phalp_results` refuses unless ``trust=True``.
@@ -114,13 +122,20 @@ def read_phalp_results(path: str | Path, trust: bool = False) -> dict:
 
 
 _TRAILING_NUMBER = re.compile(r"(\d+)(?!.*\d)")
+_DEMO_VIDEO = re.compile(r"_DEMO/([^/]+)/img/")
 
 
-def frame_index(name: Any, offset: int = 0) -> int:
-    """Video frame index of a PHALP frame key: the last number in the file name, or the index of a
-    ``(video, index)`` tuple key, minus ``offset`` (PHALP numbers extracted frames from 0)."""
-    if isinstance(name, tuple) and len(name) == 2 and isinstance(name[1], (int, np.integer)):
-        return int(name[1]) - offset
+def frame_index(name: Any, first: int = 1) -> int:
+    """0-based video frame of a PHALP frame name: its last number minus ``first``.
+
+    PHALP's frame extractor names frames ``'%06d' % (img_cnt + 1)`` (``phalp/utils/utils.py:176``), so the
+    first frame is ``000001.jpg`` and ``first`` defaults to 1. A ``(video, pts)`` tuple key (PHALP's
+    ``extract_video=False``, ``phalp/utils/io.py:81``) holds a stream timestamp, not an index: it has no
+    frame index, and :class:`InputError` says so (:func:`import_phalp` places such frames by ``time``).
+    """
+    if isinstance(name, tuple):
+        raise InputError(f"frame {name!r}: a (video, pts) key holds a stream timestamp, not a frame index, and "
+                         f"the frame has no 'time' field to place it")
     if not isinstance(name, (str, os.PathLike)):
         raise InputError(f"frame {name!r}: a frame name must be a file name with the frame number")
     stem = Path(name).stem
@@ -128,7 +143,40 @@ def frame_index(name: Any, offset: int = 0) -> int:
     if match is None:
         raise InputError(f"frame {str(name)!r}: the name has no frame number, so it cannot be matched to "
                          f"the video's frames")
-    return int(match.group(1)) - offset
+    return int(match.group(1)) - first
+
+
+def _frame_time(name: Any, frame: dict, label: str, first: int) -> int:
+    """The frame's 0-based index: its ``time`` (``PHALP.py:208``), checked against the number in its name.
+
+    ``time`` is PHALP's loop counter over the frames it processed. It is the video frame only when PHALP
+    started at the video's first frame (``video.start_frame = -1``, the default); then the name says the
+    same, counted from 1. When the two disagree the run started elsewhere and neither can be trusted to place
+    the frame, so the import refuses rather than shift every frame.
+    """
+    number = None if isinstance(name, tuple) else frame_index(name, first)
+    if "time" not in frame:
+        return frame_index(name, first)
+    try:
+        time = int(np.asarray(frame["time"]).reshape(-1)[0])
+    except (TypeError, ValueError, IndexError):
+        raise InputError(f"frame {label!r}: field 'time' is not a frame index") from None
+    if number is not None and number != time:
+        raise InputError(f"frame {label!r}: the name numbers it video frame {number} (counted from {first}) but its "
+                         f"'time' is {time}; was PHALP run from another start_frame?")
+    return time
+
+
+def results_video_name(results: dict) -> str | None:
+    """The video a results file was made from, as its keys name it (``_DEMO/<video>/img/``, or the file
+    name of a ``(video, pts)`` key), or ``None`` when the keys do not say."""
+    names = set()
+    for key in results:
+        if isinstance(key, tuple) and key and isinstance(key[0], (str, os.PathLike)):
+            names.add(Path(key[0]).stem)
+        elif isinstance(key, str) and (match := _DEMO_VIDEO.search(key)):
+            names.add(match.group(1))
+    return names.pop() if len(names) == 1 else None
 
 
 def _field(frame: dict, key: str, name: str, count: int) -> list | None:
@@ -186,8 +234,8 @@ def _observed(frame: dict, tids: list, name: str) -> list[bool]:
 
 
 def import_phalp(results: dict, shots: Shots, image_size: tuple[int, int], source: str = "results",
-                 frame_offset: int = 0, focal_length: float = HMR2_FOCAL_LENGTH,
-                 crop_size: int = HMR2_CROP_SIZE) -> PhalpImport:
+                 first_frame_number: int = 1, focal_length: float = HMR2_FOCAL_LENGTH,
+                 crop_size: int = HMR2_CROP_SIZE, video_name: str | None = None) -> PhalpImport:
     """Split PHALP results into per-shot tracks (module docstring: what is read and how).
 
     Args:
@@ -195,30 +243,41 @@ def import_phalp(results: dict, shots: Shots, image_size: tuple[int, int], sourc
         shots: the video's shots (our cut detection).
         image_size: ``(H, W)`` of the video.
         source: name of the results for messages.
-        frame_offset: subtracted from the frame numbers of the keys (1 for frames numbered from 1).
+        first_frame_number: the number in the name of the video's first frame, for frames without ``time``
+            (PHALP's extractor counts from 1).
+        video_name: the video's name (file stem); a file whose keys name another video is refused.
         focal_length: HMR2's crop focal length (``EXTRA.FOCAL_LENGTH``).
         crop_size: HMR2's crop size (PHALP's ``render.res``).
     Raises:
         InputError: one line naming the frame and field for: a pickle of another tool, missing or
-            malformed fields, frame names without frame numbers, frames beyond the video's end,
-            detections whose image size differs from the video's.
+            malformed fields, frame names without frame numbers, a name and ``time`` that disagree, frames
+            beyond the video's end (a longer or another video), keys naming another video, detections whose
+            image size differs from the video's.
+
+    Frames are placed by their ``time``. A file with FEWER frames than the video (PHALP stops before
+    ``video.end_frame``, 1300 by default, ``phalp/configs/base.py:17``) is loaded aligned by ``time``: the
+    frames it lacks simply have no detections. Nothing is shifted to make the counts agree.
     """
+    named = results_video_name(results)
+    if video_name is not None and named is not None and named != video_name:
+        raise InputError(f"{source}: the results are of video {named!r} (frame keys _DEMO/{named}/img/...), not "
+                         f"of {video_name!r}")
     h, w = (int(s) for s in image_size)
     frames: dict[int, tuple[str, dict]] = {}
     for name, frame in results.items():
-        label = str(name if not isinstance(name, tuple) else name[0])
+        label = str(name) if not isinstance(name, tuple) else f"{name[0]}@pts={name[-1]}"
         if not isinstance(frame, dict) or "tid" not in frame:
             raise InputError(f"{source}: not a 4DHumans/PHALP results file (frame {label!r} has no 'tid' "
                              f"field; a pickle from a different tool?)")
         try:
-            index = frame_index(name, frame_offset)
+            index = _frame_time(name, frame, label, first_frame_number)
         except InputError as exc:
             raise InputError(f"{source}: {exc}") from None
         if index < 0:
             raise InputError(f"{source}: frame {label!r} has index {index} before the video's first frame")
         if index >= shots.num_frames:
             raise InputError(f"{source}: frame {label!r} (index {index}) is beyond the end of the video "
-                             f"({shots.num_frames} frames)")
+                             f"({shots.num_frames} frames): results of a longer or another video")
         if index in frames:
             raise InputError(f"{source}: frames {frames[index][0]!r} and {label!r} both name frame {index}")
         frames[index] = (label, frame)
@@ -335,110 +394,7 @@ def import_phalp(results: dict, shots: Shots, image_size: tuple[int, int], sourc
 
 
 def load_phalp(path: str | Path, shots: Shots, image_size: tuple[int, int], trust: bool = False,
-               frame_offset: int = 0) -> PhalpImport:
+               first_frame_number: int = 1, video_name: str | None = None) -> PhalpImport:
     """:func:`read_phalp_results` then :func:`import_phalp`."""
     return import_phalp(read_phalp_results(path, trust), shots, image_size, source=str(path),
-                        frame_offset=frame_offset)
-
-
-def mask_box(mask: np.ndarray) -> np.ndarray:
-    """``(4,)`` ``x0, y0, x1, y1`` box of a boolean ``(H, W)`` mask (pixel edges), zeros when empty."""
-    ys, xs = np.nonzero(mask)
-    if xs.size == 0:
-        return np.zeros(4)
-    return np.array([xs.min() - 0.5, ys.min() - 0.5, xs.max() + 0.5, ys.max() + 0.5])
-
-
-def export_phalp(path: str | Path, tracks: Sequence[PersonTracks], shots: Shots,
-                 boxes: Sequence[np.ndarray] | None = None, uv_appearance: Sequence[np.ndarray] | None = None,
-                 video_name: str = "video", overwrite: bool = False,
-                 rest_pelvis: Sequence[np.ndarray] | None = None) -> Path:
-    """Write per-shot tracks as a PHALP results file (the structure :func:`import_phalp` reads).
-
-    Every video frame gets a key ``_DEMO/<video_name>/img/<frame:06d>.jpg``; ``shot`` flags the first frame
-    of each of ``shots``' shots after the first; track ids become ``tid`` (so ids shared across shots stay
-    one PHALP track); boxes default to the mask's bounding box. Fields PHALP computes from its own networks
-    that cannot be derived from tracks (``3d_joints``, ``pose``, ``loca``, ``uv``, ``camera_bbox``) are not
-    written; ``appe`` only when ``uv_appearance`` is given. ``2d_joints`` carries the SMPL joints HMR2's
-    OpenPose joints are and zeros for the others. Arrays are float32, as PHALP stores them. Atomic write;
-    an existing file is replaced only with ``overwrite``.
-
-    ``camera`` is each track's translation re-expressed for HMR2's camera (:func:`hmr2_intrinsics`, the
-    camera :func:`import_phalp` gives back), as 4DHumans reports it: the same pixel, the depth scaled by the
-    focal-length ratio (:func:`multithumbs.geometry.reexpress_for_intrinsics`). The point converted is the
-    pelvis when ``rest_pelvis`` gives each shot's ``(P, 3)`` rest pelvis (SMPL joint 0 of each track's
-    betas; the method converts the same point back), else the SMPL origin.
-    """
-    import joblib
-    from pycocotools import mask as mask_utils
-
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise InputError(f"{path}: already exists (pass overwrite=True / --overwrite to replace it)")
-    if not path.parent.is_dir():
-        raise InputError(f"{path.parent}: output folder does not exist")
-    if len(tracks) != shots.num_shots:
-        raise InputError(f"tracks: {len(tracks)} track sets for {shots.num_shots} shots")
-    h, w = tracks[0].image_size if tracks else (0, 0)
-    cuts = set(shots.cut_frames.tolist())
-    results: dict[str, dict] = {}
-    for f in range(shots.num_frames):
-        key = f"_DEMO/{video_name}/img/{f:06d}.jpg"
-        results[key] = {"time": f, "shot": int(f in cuts), "frame_path": key,
-                        **{k: [] for k in ("tid", "bbox", "tracked_time", "tracked_ids", "tracked_bbox", "center",
-                                           "scale", "size", "img_path", "img_name", "class_name", "conf",
-                                           "annotations", "smpl", "camera", "2d_joints", "mask")}}
-        if uv_appearance is not None:
-            results[key]["appe"] = []
-    for k, ((a, b), tr) in enumerate(zip(shots.ranges, tracks)):
-        if tr.num_frames != b - a or tr.start_frame != a:
-            raise InputError(f"shot {k}: tracks cover frames {tr.start_frame}..{tr.start_frame + tr.num_frames - 1}"
-                             f", the shot is {a}..{b - 1}")
-        rest = np.zeros((tr.num_people, 1, 3)) if rest_pelvis is None else np.asarray(rest_pelvis[k])[:, None]
-        camera = reexpress_for_intrinsics(tr.transl + rest, tr.K, hmr2_intrinsics(tr.image_size)) - rest
-        orient = Rotation.from_rotvec(tr.global_orient.reshape(-1, 3)).as_matrix().reshape(*tr.valid.shape, 1, 3, 3)
-        pose = Rotation.from_rotvec(tr.body_pose.reshape(-1, 3)).as_matrix().reshape(*tr.valid.shape, 23, 3, 3)
-        for i, j in zip(*np.nonzero(tr.valid)):
-            f = a + int(j)
-            key = f"_DEMO/{video_name}/img/{f:06d}.jpg"
-            frame = results[key]
-            mask = tr.mask(int(i), int(j))
-            x0, y0, x1, y1 = boxes[k][i, j] if boxes is not None else mask_box(mask)
-            bbox = np.array([x0 + 0.5, y0 + 0.5, x1 - x0, y1 - y0], np.float32)  # PHALP: continuous pixels
-            rles = mask_utils.encode(np.asfortranarray(mask[:, :, None].astype(np.uint8)))
-            for rle in rles:
-                rle["counts"] = rle["counts"].decode("utf-8")
-            joints = smpl24_to_openpose(tr.keypoints2d[i, j, :24, :2]) if tr.keypoints2d.shape[2] == 24 else \
-                np.zeros((PHALP_NUM_JOINTS, 2))
-            flat = np.where(np.repeat(_OPENPOSE_FROM_SMPL, 2), pixels_to_phalp_joints(joints, (h, w)), 0.0)
-            tid = int(tr.track_ids[i])
-            frame["tid"].append(tid)
-            frame["tracked_ids"].append(tid)
-            frame["tracked_time"].append(0)
-            frame["bbox"].append(bbox)
-            frame["tracked_bbox"].append(bbox)
-            frame["center"].append(np.array([(x0 + x1) / 2 + 0.5, (y0 + y1) / 2 + 0.5], np.float32))
-            frame["scale"].append(np.array([x1 - x0, y1 - y0], np.float32))
-            frame["size"].append([h, w])
-            frame["img_path"].append(key)
-            frame["img_name"].append(Path(key).name)
-            frame["class_name"].append(0)
-            frame["conf"].append(1.0)
-            frame["annotations"].append([])
-            frame["smpl"].append({"global_orient": orient[i, j].astype(np.float32),
-                                  "body_pose": pose[i, j].astype(np.float32),
-                                  "betas": tr.betas[i].astype(np.float32)})
-            frame["camera"].append(camera[i, j].astype(np.float32))
-            frame["2d_joints"].append(flat.astype(np.float32))
-            frame["mask"].append(rles)
-            if uv_appearance is not None:
-                frame["appe"].append(np.asarray(uv_appearance[k][i, j], np.float32))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        joblib.dump(results, tmp, compress=3)
-        publish(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+                        first_frame_number=first_frame_number, video_name=video_name)

@@ -13,7 +13,7 @@ SCENE = SceneConfig(name="pixels", num_people=2, num_shots=2, num_frames=24, see
 @pytest.fixture(scope="module")
 def scene_files(tmp_path_factory):
     from multithumbs.body.model import load_body_model
-    from multithumbs.perception.phalp import export_phalp
+    from multithumbs.perception.phalp_export import export_phalp
     from multithumbs.synth.files import write_synthetic
     from multithumbs.synth.perception import simulate_perception
     from multithumbs.synth.scene import synthesize
@@ -23,8 +23,7 @@ def scene_files(tmp_path_factory):
     video = synthesize(SCENE, body)
     write_synthetic(out, video)
     tracks = simulate_perception(video, body)
-    export_phalp(out / "perception.pkl", tracks, video.truth.world.shots(),
-                 rest_pelvis=[body.rest_pelvis(tr.betas) for tr in tracks])
+    export_phalp(out / "perception.pkl", tracks, video.truth.world.shots(), body)
     K = video.truth.world.K[0]
     return out, [K[0, 0], K[1, 1], K[0, 2], K[1, 2]]
 

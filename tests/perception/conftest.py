@@ -39,11 +39,11 @@ def video_file(scene, tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def results_file(scene, noisy_tracks, tmp_path_factory):
-    """The noisy tracks written as a PHALP results file."""
-    from multithumbs.perception.phalp import export_phalp
+def results_file(scene, noisy_tracks, body, tmp_path_factory):
+    """The noisy tracks written as a PHALP results file (``n_init=1``: every detection kept, for round trips)."""
+    from multithumbs.perception.phalp_export import export_phalp
 
-    return export_phalp(tmp_path_factory.mktemp("phalp") / "results.pkl", noisy_tracks, scene[1])
+    return export_phalp(tmp_path_factory.mktemp("phalp") / "results.pkl", noisy_tracks, scene[1], body, n_init=1)
 
 
 @pytest.fixture(scope="session")

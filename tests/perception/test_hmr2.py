@@ -102,3 +102,93 @@ def test_assemble_tracks_splits_at_cuts():
     assert tracks[1].valid.tolist() == [[True, False], [True, False]]
     np.testing.assert_allclose(tracks[1].betas, 1.0)
     assert boxes[1].shape == (2, 2, 4)
+
+
+# --- device selection and model loading (hmr2 cannot be installed here: fakes stand in for it) ---
+
+def test_device_is_cuda_when_present():
+    from multithumbs.perception.hmr2 import select_device
+
+    assert select_device("auto", cuda_available=True) == "cuda"
+    assert select_device(None, cuda_available=False) == "cpu"
+    assert select_device("cpu", cuda_available=True) == "cpu"
+    assert select_device("cuda:1", cuda_available=True) == "cuda:1"
+
+
+@pytest.mark.parametrize("device, match", [("cuda", "CUDA is not available on this machine"),
+                                           ("gpu0", "not a torch device")])
+def test_device_errors_are_one_line(device, match):
+    from multithumbs.perception.hmr2 import select_device
+
+    with pytest.raises(InputError, match=match) as e:
+        select_device(device, cuda_available=False)
+    assert "\n" not in str(e.value) and device in str(e.value)
+
+
+def _fake_hmr2(monkeypatch, init_renderer_ok: bool, load_error: Exception | None = None):
+    import sys
+    import types
+
+    calls = {}
+
+    class Cfg(dict):
+        def __init__(self):
+            super().__init__()
+            self.MODEL = types.SimpleNamespace(BACKBONE=types.SimpleNamespace(TYPE="resnet"))
+
+    class HMR2:
+        @staticmethod
+        def load_from_checkpoint(path, strict, cfg, **kwargs):
+            if not init_renderer_ok:
+                raise TypeError("unexpected keyword argument 'init_renderer'")
+            calls["kwargs"] = kwargs
+            return "model"
+
+    def load_hmr2(path):
+        raise load_error
+
+    models = types.ModuleType("hmr2.models")
+    models.HMR2, models.load_hmr2 = HMR2, load_hmr2
+    configs = types.ModuleType("hmr2.configs")
+    configs.get_config = lambda path, update_cachedir: Cfg()
+    monkeypatch.setitem(sys.modules, "hmr2", types.ModuleType("hmr2"))
+    monkeypatch.setitem(sys.modules, "hmr2.models", models)
+    monkeypatch.setitem(sys.modules, "hmr2.configs", configs)
+    return calls
+
+
+def _checkpoint(tmp_path):
+    ckpt = tmp_path / "logs" / "train" / "checkpoints" / "epoch=35.ckpt"
+    ckpt.parent.mkdir(parents=True)
+    ckpt.write_bytes(b"")
+    (tmp_path / "logs" / "train" / "model_config.yaml").write_text("")
+    return ckpt
+
+
+def test_model_loads_without_the_renderer(monkeypatch, tmp_path):
+    from multithumbs.perception.hmr2 import load_hmr2_model
+
+    calls = _fake_hmr2(monkeypatch, init_renderer_ok=True)
+    model, _ = load_hmr2_model(_checkpoint(tmp_path))
+    assert model == "model" and calls["kwargs"] == {"init_renderer": False}
+
+
+def test_renderer_that_needs_egl_is_named(monkeypatch, tmp_path):
+    from multithumbs.perception.hmr2 import load_hmr2_model
+
+    _fake_hmr2(monkeypatch, init_renderer_ok=False, load_error=ImportError("Unable to load EGL library"))
+    with pytest.raises(InputError, match="mesh renderer that needs EGL.*PYOPENGL_PLATFORM=egl") as e:
+        load_hmr2_model(_checkpoint(tmp_path))
+    assert "\n" not in str(e.value)
+
+
+def test_missing_checkpoint_and_config_are_named(monkeypatch, tmp_path):
+    from multithumbs.perception.hmr2 import load_hmr2_model
+
+    _fake_hmr2(monkeypatch, init_renderer_ok=True)
+    with pytest.raises(InputError, match="checkpoint .*none.ckpt not found"):
+        load_hmr2_model(tmp_path / "none.ckpt")
+    ckpt = _checkpoint(tmp_path)
+    (ckpt.parent.parent / "model_config.yaml").unlink()
+    with pytest.raises(InputError, match="model_config.yaml not found"):
+        load_hmr2_model(ckpt)
