@@ -63,9 +63,42 @@ def _alignment_key(config: MethodConfig) -> tuple:
     return (config.independent_shots, config.skip_align, config.align)
 
 
+PERCEPTION_ROUTES = ("direct", "phalp")
+"""How the simulated perception reaches the method: as tracks (``direct``), or written the way 4DHumans/PHALP
+writes its results and read back as ``multithumbs run --perception phalp:`` reads them (``phalp``: 1-based
+frame names, ghosts, confirmation, HMR2-camera ``2d_joints`` reprojected, appearance from the pixels)."""
+
+
+def through_phalp_file(tracks: Sequence, video, body) -> list:
+    """Simulated per-shot tracks through an upstream-shaped PHALP results file and back.
+
+    Args:
+        tracks: per-shot :class:`~multithumbs.types.PersonTracks` of the scene.
+        video: the synthesised scene (its frames, for appearance; its truth, for shots and intrinsics).
+        body: the body model (posing for the file's joints and for the reprojected keypoints).
+    Returns:
+        the tracks as a real 4DHumans user's file would give them to the method.
+    """
+    import tempfile
+    from pathlib import Path
+
+    from multithumbs.perception.appearance import fill_appearance
+    from multithumbs.perception.model_keypoints import reproject_model_keypoints
+    from multithumbs.perception.phalp import load_phalp
+    from multithumbs.perception.phalp_export import export_phalp
+
+    shots = video.truth.world.shots()
+    with tempfile.TemporaryDirectory(prefix="mt_phalp_") as tmp:
+        path = export_phalp(Path(tmp) / "results.pkl", tracks, shots, body)
+        imported = load_phalp(path, shots, video.truth.world.image_size, trust=True, video_name="video")
+    read = reproject_model_keypoints(list(imported.tracks), video.truth.world.K[0], body)
+    return fill_appearance(read, video.frames, imported.uv_appearance, imported.uv_valid)
+
+
 def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: MethodConfig = MethodConfig(),
-                      seed: int = 0, seconds: dict[str, float] | None = None):
-    """Synthesise one scene and run the variants on shared stages (module docstring).
+                      seed: int = 0, seconds: dict[str, float] | None = None, perception: str = "direct"):
+    """Synthesise one scene and run the variants on shared stages (module docstring); ``perception`` is
+    one of :data:`PERCEPTION_ROUTES`.
 
     Returns:
         the scene's :class:`~multithumbs.types.GroundTruth` and variant -> its
@@ -80,6 +113,10 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
     video = synthesize(config, body)
     shots = video.truth.world.shots()
     tracks = simulate_perception(video, body, seed=seed)
+    if perception == "phalp":
+        tracks = through_phalp_file(tracks, video, body)
+    elif perception != "direct":
+        raise InputError(f"perception route {perception!r}: expected one of {', '.join(PERCEPTION_ROUTES)}")
     spaces = [simulate_shared_space(video, c, seed=seed) for c in range(len(shots.cut_frames))]
     trajectories = [simulate_camera_trajectory(video, k, seed=seed) for k in range(shots.num_shots)]
     tracks = prepare_inputs(shots, tracks, trajectories, spaces)
@@ -113,14 +150,14 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
 
 
 def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: MethodConfig = MethodConfig(),
-              seed: int = 0) -> SceneScores:
+              seed: int = 0, perception: str = "direct") -> SceneScores:
     """Synthesise one scene, run the variants on shared stages, score them."""
     from multithumbs.body.model import load_body_model
     from multithumbs.metrics.evaluate import evaluate
 
     body = load_body_model()
     seconds: dict[str, float] = {}
-    truth, results = run_scene_results(config, variants, body, base, seed, seconds)
+    truth, results = run_scene_results(config, variants, body, base, seed, seconds, perception)
     metrics, labels = {}, {}
     for name, result in results.items():
         metrics[name], labels[name] = scene_metrics(evaluate(result, truth, body))
@@ -148,22 +185,26 @@ def _init_worker(threads: int) -> None:
 
 def run_suite(configs: Sequence[SceneConfig], variants: Sequence[str] = VARIANTS, workers: int | None = None,
               base: MethodConfig = MethodConfig(),
-              progress: Callable[[SceneScores, int, int], None] | None = None) -> list[SceneScores]:
-    """Run every scene (in ``workers`` processes; default: one per core) and return their scores in order."""
+              progress: Callable[[SceneScores, int, int], None] | None = None,
+              perception: str = "direct") -> list[SceneScores]:
+    """Run every scene (in ``workers`` processes; default: one per core) and return their scores in order;
+    ``perception`` as :func:`run_scene_results`."""
     for v in variants:
         variant_config(v)  # unknown names fail before any work
+    if perception not in PERCEPTION_ROUTES:
+        raise InputError(f"--perception-file {perception!r}: expected one of {', '.join(PERCEPTION_ROUTES)}")
     workers = workers or max(1, min(len(configs), os.cpu_count() or 1))
     if workers == 1:
         out = []
         for i, c in enumerate(configs):
-            out.append(run_scene(c, variants, base))
+            out.append(run_scene(c, variants, base, perception=perception))
             if progress:
                 progress(out[-1], i + 1, len(configs))
         return out
     results: dict[str, SceneScores] = {}
     # One torch thread per worker: the optimisations are small-op bound, processes scale better.
     with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=(1,)) as pool:
-        futures = {pool.submit(run_scene, c, variants, base): c.name for c in configs}
+        futures = {pool.submit(run_scene, c, variants, base, 0, perception): c.name for c in configs}
         for done, future in enumerate(as_completed(futures), 1):
             scores = future.result()
             results[scores.scene] = scores

@@ -332,6 +332,9 @@ def bench_cmd(
     scenes: Optional[str] = typer.Option(None, "--scenes", help="Comma-separated scene names (default: all)."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Worker processes (default: one per core)."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON keyed by variant, then metric."),
+    perception_file: str = typer.Option("direct", "--perception-file",
+                                        help="direct, or phalp: the simulated perception through a "
+                                             "4DHumans/PHALP results file, as a real user's."),
 ) -> None:
     """Run a synthetic suite with the full method, each ablation and each baseline; print the metrics."""
     import time
@@ -347,12 +350,16 @@ def bench_cmd(
     start = time.perf_counter()
     with _progress() as bar:
         task = bar.add_task(f"suite {suite_name}", total=len(configs))
-        results = run_suite(configs, names, workers, progress=lambda s, done, total: bar.update(task, completed=done))
+        results = run_suite(configs, names, workers, progress=lambda s, done, total: bar.update(task, completed=done),
+                            perception=perception_file)
     summary = summarize(results, names)
     elapsed = time.perf_counter() - start
+    backends = dict(BACKENDS)
+    if perception_file == "phalp":
+        backends["perception"] = "simulated, through a 4DHumans/PHALP results file"
     if as_json:
         print(json.dumps(_jsonable({**summary, "_meta": {"suite": suite_name, "scenes": [c.name for c in configs],
-                                                          "seconds": elapsed, "backends": BACKENDS}}),
+                                                          "seconds": elapsed, "backends": backends}}),
                          indent=1, sort_keys=True))
         return
     from multithumbs.cli_format import output_console, split_metric_tables
@@ -364,7 +371,7 @@ def bench_cmd(
     means = {v: {k: summary[v][k]["mean"] for k in METRIC_KEYS} for v in names}
     tables = split_metric_tables(out, f"suite {suite_name}: {len(configs)} scenes, {elapsed:.0f} s, means",
                                  "variant", means, METRIC_KEYS, METRIC_UNITS,
-                                 caption="backends: " + "; ".join(f"{k} {v}" for k, v in BACKENDS.items()))
+                                 caption="backends: " + "; ".join(f"{k} {v}" for k, v in backends.items()))
     for table in tables:
         out.print(table)
 

@@ -30,3 +30,30 @@ def test_shared_stages_give_each_variant_its_own_result():
                          video.truth, body)
         for key in ("w_mpjpe", "mpjpe", "accel", "ids"):
             np.testing.assert_allclose(scores.metrics[name][key], alone[key], rtol=1e-6, atol=1e-6, err_msg=name)
+
+
+def test_perception_through_a_phalp_file_is_what_a_4dhumans_user_gets():
+    """The ``phalp`` route writes the simulated tracks as PHALP does and reads them back as ``run`` does:
+    the same people and frames (bar the 4 unconfirmed first frames of a track), and 2D keypoints that are the
+    mesh's own projections rather than the simulated detector's."""
+    import pytest
+
+    from multithumbs.bench import through_phalp_file
+    from multithumbs.errors import InputError
+
+    config = SceneConfig(num_people=2, num_shots=2, num_frames=24, seed=5, image_size=(180, 320), cut_angle_deg=30)
+    body = load_body_model()
+    video = synthesize(config, body)
+    direct = simulate_perception(video, body)
+    read = through_phalp_file(direct, video, body)
+    assert [tr.num_people for tr in read] == [tr.num_people for tr in direct]
+    for before, after in zip(direct, read):
+        assert after.valid.sum() <= before.valid.sum() and after.valid.sum() >= 0.8 * before.valid.sum()
+        both = before.valid & after.valid
+        np.testing.assert_allclose(after.betas, before.betas, atol=1e-4)
+        # The simulated detector's keypoints are noisy observations; the file's are the mesh reprojected.
+        moved = np.abs(after.keypoints2d[both][..., :2] - before.keypoints2d[both][..., :2]).max()
+        assert moved > 0.5
+        assert after.appearance_valid[both].mean() > 0.5
+    with pytest.raises(InputError, match="perception route"):
+        run_scene(config, ("full",), FAST, perception="hmr2")
