@@ -14,6 +14,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
+from multithumbs.cli_runtime import finish, flow_environment, flow_logging, log_file, refuse, start_flow_api
 from multithumbs.errors import InputError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
@@ -137,17 +138,6 @@ def evaluate_cmd(
     Console().print(table)
 
 
-def _flow_environment() -> None:
-    """Settings of the embedded Prefect API (ephemeral server, SQLite) kept out of the home folder."""
-    import os
-
-    cache = Path(os.environ.get("MULTITHUMBS_CACHE", Path.home() / ".cache" / "multithumbs"))
-    os.environ.setdefault("PREFECT_HOME", str(cache / "prefect"))
-    os.environ.setdefault("PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS", "90")
-    os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
-    os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
-
-
 def _method_overrides(assignments: list[str]) -> dict:
     """``section.field=value`` (JSON values) -> the flow's ``method`` overrides."""
     overrides: dict = {}
@@ -189,14 +179,14 @@ def run_cmd(
 ) -> None:
     """Reconstruct the people of a video across its cuts through the Prefect flow (embedded API): shots,
     camera trajectories and shared spaces from the pixels, people from --perception."""
-    _flow_environment()  # before anything imports prefect: its settings are read at import
-    from multithumbs.bench import METRIC_KEYS
-    from multithumbs.perception import parse_spec
-    from multithumbs.synth.files import prepare_output_dir
-    from multithumbs.video import probe_video
-    from tasks.method import method_config
+    flow_environment()  # before anything imports prefect: its settings are read at import
+    from multithumbs.extras import require
+    from multithumbs.io import check_output_dir, make_output_dir
+    from multithumbs.perception import check_backends, parse_spec
+    from multithumbs.video import check_intrinsics, probe_video
 
-    # Every check a user can fail runs before Prefect starts, so mistakes cost a second, not a minute.
+    # Every check a user can fail runs before Prefect (and torch) is imported, so mistakes cost a second,
+    # not a minute; the method's parameters need torch's modules and come last.
     info = probe_video(video)
     terms = parse_spec(perception)
     for term in terms:
@@ -207,22 +197,28 @@ def run_cmd(
             if not trust_pickle:
                 raise InputError(f"--perception {path}: a pickle runs code when loaded; pass --trust-pickle if you "
                                  f"trust this file")
-    method = _method_overrides(settings)
-    method_config(variant, method)
+    check_backends(terms)
+    require("scenedetect", "multithumbs run (shot detection)")
     K = None
     if intrinsics is not None:
         try:
-            K = [float(v) for v in intrinsics.split(",")]
-        except ValueError:
-            raise InputError(f"--intrinsics {intrinsics!r}: expected four numbers fx,fy,cx,cy") from None
-        from flows.video import intrinsics_matrix
-
-        intrinsics_matrix(K, info.width, info.height)
+            K = check_intrinsics(intrinsics.split(","))
+        except ValueError:  # InputError is one too
+            raise InputError(f"--intrinsics {intrinsics!r}: expected four numbers fx,fy,cx,cy, fx and fy "
+                             f"positive") from None
     if truth is not None and not truth.is_file():
         raise InputError(f"--truth {truth}: no such file")
-    out_dir = prepare_output_dir(out, overwrite, RUN_OUTPUTS)
-    from flows.video import reconstruct_video
+    check_output_dir(out, overwrite, RUN_OUTPUTS)
+    method = _method_overrides(settings)
+    start_flow_api()
+    from multithumbs.overrides import method_config
 
+    method_config(variant, method)
+    out_dir = make_output_dir(out)
+    from flows.video import reconstruct_video
+    from multithumbs.bench import METRIC_KEYS
+
+    flow_logging()
     with console.status(f"reconstructing {video.name}: {info.num_frames} frames, {info.width}x{info.height}"):
         summary = reconstruct_video(str(video.resolve()), str(out_dir.resolve()),
                                     store or str((out_dir / "store").resolve()), perception, trust_pickle, K,
@@ -253,17 +249,23 @@ def demo_cmd(
     overwrite: bool = typer.Option(False, "--overwrite", help="Reuse an output folder that holds a demo."),
 ) -> None:
     """Synthesise a standard-suite scene and reconstruct it through the real Prefect flow (embedded API)."""
+    flow_environment()
+    from multithumbs.io import check_output_dir
+
+    check_output_dir(out, overwrite, ("video.mp4", "ground_truth.npz", "contact_sheet.png"))
+    start_flow_api()
     from multithumbs.bench import METRIC_KEYS
     from multithumbs.pipeline import variant_config
     from multithumbs.synth.files import prepare_output_dir
     from multithumbs.synth.scene import config_to_json
     from multithumbs.synth.suite import suite_scene
 
-    _flow_environment()
     config = suite_scene("standard", scene)
     variant_config(variant)
     out_dir = prepare_output_dir(out, overwrite)
     from flows.reconstruct import reconstruct_synthetic
+
+    flow_logging()
 
     with console.status(f"{scene}: synthesising and reconstructing (a first run takes about a minute)"):
         metrics = reconstruct_synthetic(config_to_json(config), str(out_dir.resolve()),
@@ -343,13 +345,20 @@ _register("multithumbs.viz.commands")
 # end of area commands
 
 
-def main() -> None:
-    """Entry point: run the app; user errors become one line on stderr and exit code 2."""
+def _dispatch() -> None:
+    """Run the app; user errors become one line on stderr and exit code 2."""
     try:
         app(standalone_mode=False)
     except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        sys.exit(2)
+        refuse(str(exc), exc)
+    except ModuleNotFoundError as exc:
+        # A package only scripts/setup.sh installs, missing where no command checked for it.
+        from multithumbs.extras import missing_package_message
+
+        message = missing_package_message(exc.name or "")
+        if message is None:
+            raise
+        refuse(message, exc)
     except SystemExit:
         raise
     except Exception as exc:
@@ -359,7 +368,25 @@ def main() -> None:
             sys.exit(2)
         if type(exc).__name__ == "Abort":
             sys.exit(130)
+        print(f"log of this run: {log_file()}", file=sys.stderr)
         raise
+
+
+def main() -> None:
+    """Entry point (:func:`_dispatch`); :func:`multithumbs.cli_runtime.finish` ends the process."""
+    code: int | str | None = 1
+    try:
+        _dispatch()
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    except KeyboardInterrupt:
+        code = 130
+    except BaseException:
+        import traceback
+
+        traceback.print_exc()
+    finish(code)
 
 
 if __name__ == "__main__":
