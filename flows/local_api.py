@@ -120,3 +120,37 @@ def start_api(prefect_home: Path, log_path: Path | None = None) -> LocalAPI:
     api = LocalAPI(url, process, "ephemeral")
     atexit.register(api.stop)  # the CLI stops it itself; this covers callers that do not
     return api
+
+
+def serve_dashboard(prefect_home: Path, host: str, port: int, announce=print) -> int:
+    """Run ``prefect server start`` (UI and API) on ``prefect_home`` until it stops (Ctrl-C); while it runs,
+    the CLI's flows go to it (:func:`start_api`), so they show in its dashboard. Returns its exit code."""
+    api_url = f"http://{host}:{port}/api"
+    if healthy(api_url, timeout=0.5):
+        raise RuntimeError(f"something already answers at {api_url}; pick another --port")
+    record = prefect_home / DASHBOARD_FILE
+    prefect_home.mkdir(parents=True, exist_ok=True)
+    env = {**os.environ, "PREFECT_HOME": str(prefect_home)}
+    env.pop("PREFECT_API_URL", None)
+    process = subprocess.Popen([str(Path(sys.executable).with_name("prefect")), "server", "start", "--host", host,
+                                "--port", str(port)], env=env, stdin=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while not healthy(api_url):
+            if process.poll() is not None:
+                return process.returncode
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"the dashboard's server did not answer at {api_url} within 120 s")
+            time.sleep(0.5)
+        record.write_text(json.dumps({"api_url": api_url, "pid": process.pid}))
+        announce(f"dashboard at http://{host}:{port} on PREFECT_HOME={prefect_home}; `multithumbs run` and "
+                 f"`multithumbs demo` send their runs here while it runs (Ctrl-C stops it)")
+        return process.wait()
+    except KeyboardInterrupt:
+        process.send_signal(signal.SIGINT)  # the server shuts down cleanly on SIGINT or SIGTERM
+        return process.wait(timeout=30)
+    finally:
+        record.unlink(missing_ok=True)
+        if process.poll() is None:
+            process.terminate()
+            process.wait(timeout=30)

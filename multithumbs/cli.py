@@ -281,6 +281,26 @@ def demo_cmd(
                   f"trajectory.png, report.md, scene.glb, scene.rrd, smpl/, bvh/, colmap/ (list: outputs.json)")
 
 
+@app.command("dashboard")
+def dashboard_cmd(
+    port: int = typer.Option(4200, "--port", help="Port of the UI and API."),
+    host: str = typer.Option("127.0.0.1", "--host", help="Address to listen on."),
+) -> None:
+    """Prefect's dashboard on the CLI's Prefect home (MULTITHUMBS_CACHE/prefect): the runs of `run` and `demo`
+    so far, and, while it runs, theirs go to it live (no server to start for each)."""
+    import os
+
+    flow_environment()
+    from flows.local_api import serve_dashboard
+
+    try:
+        code = serve_dashboard(Path(os.environ["PREFECT_HOME"]), host, port, console.print)
+    except RuntimeError as exc:
+        raise InputError(f"dashboard: {exc}") from None
+    if code not in (0, None, -2, 130):
+        raise InputError(f"dashboard: the Prefect server exited with code {code}")
+
+
 @app.command("bench")
 def bench_cmd(
     suite_name: str = typer.Option("standard", "--suite", help="Named synthetic suite."),
