@@ -50,10 +50,13 @@ def test_deploy_readme_steps_run_in_order(tmp_path):
     env.pop("PREFECT_API_URL", None)
     # -e: stop at the first failing step; the background jobs (server, worker) share the script's process
     # group, stopped below: the worker on SIGINT, then the server on SIGTERM.
-    process = subprocess.Popen(["bash", "-e", "-c", script + "\necho STEPS-DONE\n"], cwd=REPO, env=env,
-                               start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    # Output to a file: the background jobs keep a pipe open after the script ends.
+    log = tmp_path / "steps.log"
+    with open(log, "w") as fh:
+        process = subprocess.Popen(["bash", "-e", "-c", script + "\necho STEPS-DONE\n"], cwd=REPO, env=env,
+                                   start_new_session=True, stdout=fh, stderr=subprocess.STDOUT)
     try:
-        output, _ = process.communicate(timeout=840)
+        process.wait(timeout=840)
     finally:
         for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
             try:
@@ -61,6 +64,7 @@ def test_deploy_readme_steps_run_in_order(tmp_path):
             except ProcessLookupError:
                 break
             time.sleep(5)
+    output = log.read_text()
     assert "STEPS-DONE" in output, output[-5000:]
     assert "finished successfully" in output, output[-5000:]
     metrics = json.loads((tmp_path / "s09" / "metrics.json").read_text())
