@@ -20,11 +20,11 @@ import time
 from pathlib import Path
 
 
-def timed(args: list[str], env: dict, prelude: str = "") -> tuple[float, float, int, str]:
+def timed(args: list[str], env: dict, prelude: str = "", cwd: Path | None = None) -> tuple[float, float, int, str]:
     """Seconds to the first ``error:`` line, seconds to exit, stderr line count, the error line."""
     code = f"import sys\n{prelude}\nsys.argv = ['multithumbs', *{args!r}]\nfrom multithumbs.cli import main\nmain()\n"
     start = time.perf_counter()
-    process = subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.DEVNULL,
+    process = subprocess.Popen([sys.executable, "-c", code], env=env, cwd=cwd, stdout=subprocess.DEVNULL,
                                stderr=subprocess.PIPE, text=True)
     first, lines, error = None, 0, ""
     for line in process.stderr:
@@ -46,7 +46,7 @@ def main() -> None:
     for name, frames in (("a", 8), ("b", 12)):
         subprocess.run([sys.executable, "-m", "multithumbs.cli", "synth", "--out", str(work / name), "--people", "2",
                         "--shots", "2", "--frames", str(frames), "--width", "320", "--height", "180"],
-                       env=env, check=True, capture_output=True)
+                       env=env, cwd=args.repo, check=True, capture_output=True)
     video, pkl = str(work / "a" / "video.mp4"), f"phalp:{work / 'a' / 'perception.pkl'}"
     out = str(work / "o")
     cases = [
@@ -64,7 +64,7 @@ def main() -> None:
         results = []
         for _ in range(args.repeats):
             shutil.rmtree(out, ignore_errors=True)
-            results.append(timed(argv, env, prelude))
+            results.append(timed(argv, env, prelude, cwd=args.repo))  # cwd: `-c` puts it first on sys.path
         first = statistics.median(r[0] for r in results)
         end = statistics.median(r[1] for r in results)
         lines = statistics.median(r[2] for r in results)

@@ -56,6 +56,8 @@ def start_flow_api() -> None:
 
     global _API
     _API = start_api(Path(os.environ["PREFECT_HOME"]), log_file())
+    with open(log_file(), "a", encoding="utf-8") as fh:
+        fh.write(f"Prefect API: {_API.source} at {_API.api_url}\n")
 
 
 def flow_logging() -> None:
@@ -89,15 +91,15 @@ def refuse(message: str, exc: BaseException) -> None:
 def finish(code) -> None:
     """End the process with ``code`` (an exit code, None or a message), stopping a server it started.
 
-    After a flow, the process ends with ``os._exit`` once atexit handlers have run and output is flushed:
-    tearing down the interpreter after torch, Prefect and its server modules are imported took ~5 s here,
-    and there is nothing left to do in it.
+    Once torch or Prefect is imported, the process ends with ``os._exit`` after atexit handlers have run and
+    output is flushed: tearing down the interpreter after torch, Prefect and its server modules took ~5 s
+    here, and there is nothing left to do in it.
     """
     if isinstance(code, str):
         print(code, file=sys.stderr)
         code = 1
     code = 0 if code is None else code
-    if "prefect" not in sys.modules:
+    if not {"prefect", "torch"} & set(sys.modules):
         if _API is not None:
             _API.stop()
         sys.exit(code)
