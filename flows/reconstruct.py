@@ -57,13 +57,14 @@ SIMULATED_BACKENDS = {"shots": "ground truth cuts", "perception": "SIMULATED (sy
 
 
 @flow(name="reconstruct-synthetic", task_runner=ThreadPoolTaskRunner(max_workers=2))
-def reconstruct_synthetic(scene: dict, out_dir: str, store_url: str, variant: str = "full",
+def reconstruct_synthetic(scene: dict | str, out_dir: str, store_url: str, variant: str = "full",
                           method: dict[str, Any] | None = None, smpl_model: str | None = None) -> dict[str, Any]:
     """Synthesise a scene (with SIMULATED perception, shared space and camera tracking), reconstruct it with
     the method's stages as cached tasks, score it, and write ``result.npz`` and ``metrics.json`` to ``out_dir``.
 
     Args:
-        scene: a :class:`~multithumbs.synth.scene.SceneConfig` as JSON (``config_to_json``).
+        scene: a :class:`~multithumbs.synth.scene.SceneConfig` as JSON (``config_to_json``), or the name of
+            a scene of the standard suite (``s09_crossing_at_cut``): that scene exactly, as ``multithumbs demo``.
         out_dir: folder for the scene's files and the result.
         store_url: artifact store (local path or fsspec URL).
         variant: method variant (``full``, an ablation or a baseline).
@@ -73,6 +74,11 @@ def reconstruct_synthetic(scene: dict, out_dir: str, store_url: str, variant: st
     """
     from tasks.body import resolve_body
 
+    if isinstance(scene, str):
+        from multithumbs.synth.scene import config_to_json
+        from multithumbs.synth.suite import suite_scene
+
+        scene = config_to_json(suite_scene("standard", scene))
     body_path, body = resolve_body(smpl_model)
     Path(out_dir).mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}

@@ -22,16 +22,12 @@ from tasks.method import method_params
 def intrinsics_matrix(intrinsics: list[float] | None, width: int, height: int) -> list[list[float]]:
     """``K`` from ``[fx, fy, cx, cy]``, or the documented guess for unknown cameras
     (:func:`multithumbs.scene.two_view.default_intrinsics`)."""
-    import numpy as np
-
-    from multithumbs.errors import InputError
     from multithumbs.scene.two_view import default_intrinsics
+    from multithumbs.video import check_intrinsics
 
     if intrinsics is None:
         return default_intrinsics(width, height).tolist()
-    if len(intrinsics) != 4 or not all(np.isfinite(intrinsics)) or intrinsics[0] <= 0 or intrinsics[1] <= 0:
-        raise InputError(f"intrinsics: expected positive fx, fy and finite cx, cy, got {intrinsics}")
-    fx, fy, cx, cy = (float(v) for v in intrinsics)
+    fx, fy, cx, cy = check_intrinsics(intrinsics)
     return [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]
 
 

@@ -16,6 +16,7 @@ from rich import box
 from rich.table import Table
 
 from multithumbs.cli_format import hide_flag_types
+from multithumbs.cli_runtime import finish, flow_environment, flow_logging, log_file, refuse, start_flow_api
 from multithumbs.errors import InputError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
@@ -152,20 +153,6 @@ def evaluate_cmd(
     Console().print(table)
 
 
-def _flow_environment() -> None:
-    """Settings of the embedded Prefect API (ephemeral server, SQLite) kept out of the home folder."""
-    import os
-
-    cache = Path(os.environ.get("MULTITHUMBS_CACHE", Path.home() / ".cache" / "multithumbs"))
-    os.environ.setdefault("PREFECT_HOME", str(cache / "prefect"))
-    os.environ.setdefault("PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS", "90")
-    # No usage data leaves a user's machine unasked: the embedded server's analytics and Prefect's
-    # client-side telemetry (with its first-run notice) are off unless the user sets these themselves.
-    os.environ.setdefault("PREFECT_SERVER_ANALYTICS_ENABLED", "false")
-    os.environ.setdefault("DO_NOT_TRACK", "1")
-    os.environ.setdefault("PREFECT_LOGGING_LEVEL", "WARNING")
-
-
 def _method_overrides(assignments: list[str]) -> dict:
     """``section.field=value`` (JSON values) -> the flow's ``method`` overrides."""
     overrides: dict = {}
@@ -210,14 +197,14 @@ def run_cmd(
 ) -> None:
     """Reconstruct the people of a video across its cuts through the Prefect flow (embedded API): shots,
     camera trajectories and shared spaces from the pixels, people from --perception."""
-    _flow_environment()  # before anything imports prefect: its settings are read at import
-    from multithumbs.bench import METRIC_KEYS
-    from multithumbs.perception import parse_spec
-    from multithumbs.synth.files import prepare_output_dir
-    from multithumbs.video import probe_video
-    from tasks.method import method_config
+    flow_environment()  # before anything imports prefect: its settings are read at import
+    from multithumbs.extras import require
+    from multithumbs.io import check_output_dir, make_output_dir
+    from multithumbs.perception import check_backends, parse_spec
+    from multithumbs.video import check_intrinsics, probe_video
 
-    # Every check a user can fail runs before Prefect starts, so mistakes cost a second, not a minute.
+    # Every check a user can fail runs before Prefect (and torch) is imported, so mistakes cost a second,
+    # not a minute; the method's parameters need torch's modules and come last.
     info = probe_video(video)
     terms = parse_spec(perception)
     for term in terms:
@@ -228,7 +215,24 @@ def run_cmd(
             if not trust_pickle:
                 raise InputError(f"--perception {path}: a pickle runs code when loaded; pass --trust-pickle if you "
                                  f"trust this file")
+    check_backends(terms)
+    require("scenedetect", "multithumbs run (shot detection)")
+    if smpl_model is not None and not smpl_model.is_file():
+        raise InputError(f"--smpl-model {smpl_model}: no such file")
+    K = None
+    if intrinsics is not None:
+        try:
+            K = check_intrinsics(intrinsics.split(","))
+        except ValueError:  # InputError is one too
+            raise InputError(f"--intrinsics {intrinsics!r}: expected four numbers fx,fy,cx,cy, fx and fy "
+                             f"positive") from None
+    if truth is not None and not truth.is_file():
+        raise InputError(f"--truth {truth}: no such file")
+    check_output_dir(out, overwrite, RUN_OUTPUTS)
     method = _method_overrides(settings)
+    start_flow_api()
+    from multithumbs.overrides import method_config
+
     method_config(variant, method)
     if terms[0].backend == "hmr2" or len(terms) > 1:
         from multithumbs.perception.hmr2 import select_device
@@ -237,20 +241,11 @@ def run_cmd(
     from multithumbs.body.model import resolve_model_path
 
     resolve_model_path(smpl_model)
-    K = None
-    if intrinsics is not None:
-        try:
-            K = [float(v) for v in intrinsics.split(",")]
-        except ValueError:
-            raise InputError(f"--intrinsics {intrinsics!r}: expected four numbers fx,fy,cx,cy") from None
-        from flows.video import intrinsics_matrix
-
-        intrinsics_matrix(K, info.width, info.height)
-    if truth is not None and not truth.is_file():
-        raise InputError(f"--truth {truth}: no such file")
-    out_dir = prepare_output_dir(out, overwrite, RUN_OUTPUTS)
+    out_dir = make_output_dir(out)
     from flows.video import reconstruct_video
+    from multithumbs.bench import METRIC_KEYS
 
+    flow_logging()
     with console.status(f"reconstructing {video.name}: {info.num_frames} frames, {info.width}x{info.height}"):
         summary = reconstruct_video(str(video.resolve()), str(out_dir.resolve()),
                                     store or str((out_dir / "store").resolve()), perception, trust_pickle, K,
@@ -291,13 +286,17 @@ def demo_cmd(
     smpl_model: Optional[Path] = SMPL_OPTION,
 ) -> None:
     """Synthesise a standard-suite scene and reconstruct it through the real Prefect flow (embedded API)."""
+    flow_environment()
+    from multithumbs.io import check_output_dir
+
+    check_output_dir(out, overwrite, ("video.mp4", "ground_truth.npz", "contact_sheet.png"))
+    start_flow_api()
     from multithumbs.bench import METRIC_KEYS
     from multithumbs.pipeline import variant_config
     from multithumbs.synth.files import prepare_output_dir
     from multithumbs.synth.scene import config_to_json
     from multithumbs.synth.suite import suite_scene
 
-    _flow_environment()
     config = suite_scene("standard", scene)
     variant_config(variant)
     from multithumbs.body.model import resolve_model_path
@@ -305,6 +304,8 @@ def demo_cmd(
     resolve_model_path(smpl_model)  # a missing file fails before Prefect starts
     out_dir = prepare_output_dir(out, overwrite)
     from flows.reconstruct import reconstruct_synthetic
+
+    flow_logging()
 
     # True of both cases without asking the store first (it may be remote): a re-run computes nothing,
     # but still starts the embedded Prefect API.
@@ -323,6 +324,26 @@ def demo_cmd(
     out.print("SIMULATED: perception, shared space and camera tracking; the method is real.")
     console.print(f"outputs in {out_dir}: video.mp4, ground_truth.npz, result.npz, metrics.json, overlay.mp4, "
                   f"trajectory.png, report.md, scene.glb, scene.rrd, smpl/, bvh/, colmap/ (list: outputs.json)")
+
+
+@app.command("dashboard")
+def dashboard_cmd(
+    port: int = typer.Option(4200, "--port", help="Port of the UI and API."),
+    host: str = typer.Option("127.0.0.1", "--host", help="Address to listen on."),
+) -> None:
+    """Prefect's dashboard on the CLI's Prefect home (MULTITHUMBS_CACHE/prefect): the runs of `run` and `demo`
+    so far, and, while it runs, theirs go to it live (no server to start for each)."""
+    import os
+
+    flow_environment()
+    from flows.local_api import serve_dashboard
+
+    try:
+        code = serve_dashboard(Path(os.environ["PREFECT_HOME"]), host, port, console.print)
+    except RuntimeError as exc:
+        raise InputError(f"dashboard: {exc}") from None
+    if code not in (0, None, -2, 130):
+        raise InputError(f"dashboard: the Prefect server exited with code {code}")
 
 
 @app.command("bench")
@@ -400,13 +421,20 @@ _register("multithumbs.viz.commands")
 # end of area commands
 
 
-def main() -> None:
-    """Entry point: run the app; user errors become one line on stderr and exit code 2."""
+def _dispatch() -> None:
+    """Run the app; user errors become one line on stderr and exit code 2."""
     try:
         app(standalone_mode=False)
     except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        sys.exit(2)
+        refuse(str(exc), exc)
+    except ModuleNotFoundError as exc:
+        # A package only scripts/setup.sh installs, missing where no command checked for it.
+        from multithumbs.extras import missing_package_message
+
+        message = missing_package_message(exc.name or "")
+        if message is None:
+            raise
+        refuse(message, exc)
     except SystemExit:
         raise
     except Exception as exc:
@@ -416,7 +444,25 @@ def main() -> None:
             sys.exit(2)
         if type(exc).__name__ == "Abort":
             sys.exit(130)
+        print(f"log of this run: {log_file()}", file=sys.stderr)
         raise
+
+
+def main() -> None:
+    """Entry point (:func:`_dispatch`); :func:`multithumbs.cli_runtime.finish` ends the process."""
+    code: int | str | None = 1
+    try:
+        _dispatch()
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    except KeyboardInterrupt:
+        code = 130
+    except BaseException:
+        import traceback
+
+        traceback.print_exc()
+    finish(code)
 
 
 if __name__ == "__main__":

@@ -133,6 +133,29 @@ def read_json(path: str | Path) -> Any:
         raise InputError(f"{path}: not readable JSON ({error})") from None
 
 
+def check_output_dir(out_dir: str | Path, overwrite: bool, names: tuple[str, ...]) -> Path:
+    """What :func:`make_output_dir` and an output check would refuse, without creating anything: so a
+    command can check every input before it writes (or imports) anything."""
+    out = Path(out_dir)
+    if out.exists():
+        if not out.is_dir():
+            raise InputError(f"{out}: exists and is not a folder")
+        if not os.access(out, os.W_OK):
+            raise InputError(f"{out}: output folder is not writable")
+        existing = [n for n in names if (out / n).exists()]
+        if existing and not overwrite:
+            raise InputError(f"{out / existing[0]}: already exists (pass --overwrite to replace it)")
+        return out
+    parent = out.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise InputError(f"{out}: cannot create the output folder ({parent} is a file)")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"{out}: cannot create the output folder ({parent} is not writable)")
+    return out
+
+
 def make_output_dir(out_dir: str | Path) -> Path:
     """Create ``out_dir`` (and parents) if needed; :class:`InputError` when it is a file or not writable."""
     out = Path(out_dir)

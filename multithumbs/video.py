@@ -58,6 +58,15 @@ def _open(path: Path) -> cv2.VideoCapture:
     return capture
 
 
+def check_intrinsics(values: Sequence[float]) -> list[float]:
+    """``[fx, fy, cx, cy]`` as floats, or :class:`InputError` unless the focal lengths are positive and all
+    four finite (kept here, beside the video, so the CLI checks it without importing the flows)."""
+    values = [float(v) for v in values]
+    if len(values) != 4 or not all(np.isfinite(values)) or values[0] <= 0 or values[1] <= 0:
+        raise InputError(f"intrinsics: expected positive fx, fy and finite cx, cy, got {values}")
+    return values
+
+
 def probe_video(path: str | Path) -> VideoInfo:
     """Open ``path`` and count its decodable frames (the header's count is unreliable for edited video)."""
     path = Path(path)

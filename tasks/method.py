@@ -8,41 +8,10 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+from multithumbs.overrides import METHOD_SECTIONS, method_config  # noqa: F401  (re-exported)
 from storage.store import ArtifactRef
 from tasks.artifacts import cached_stage, load, stage_task
 from tasks.body import without_body
-
-METHOD_SECTIONS = ("align", "reid", "post")
-"""Sub-configs of :class:`multithumbs.pipeline.MethodConfig` that overrides may name."""
-
-
-def method_config(variant: str = "full", overrides: dict[str, Any] | None = None):
-    """The :class:`~multithumbs.pipeline.MethodConfig` of a variant with JSON overrides applied.
-
-    ``overrides`` maps a section (``align``, ``reid``, ``post``) to ``{field: value}``, or a top-level field
-    of ``MethodConfig`` to its value, e.g. ``{"reid": {"max_distance": 0.8}, "appearance_window": 9}``.
-    Unknown names raise :class:`~multithumbs.errors.InputError`.
-    """
-    from multithumbs.errors import InputError
-    from multithumbs.pipeline import variant_config
-
-    config = variant_config(variant)
-    for name, value in (overrides or {}).items():
-        if name in METHOD_SECTIONS:
-            section = getattr(config, name)
-            known = {f.name: f for f in dataclasses.fields(section)}
-            for field_name, field_value in value.items():
-                if field_name not in known:
-                    raise InputError(f"method parameter {name}.{field_name}: unknown; known: {', '.join(known)}")
-            section = dataclasses.replace(section, **{k: tuple(v) if isinstance(v, list) else v
-                                                      for k, v in value.items()})
-            config = dataclasses.replace(config, **{name: section})
-        elif name in {f.name for f in dataclasses.fields(config)} and name != "variant":
-            config = dataclasses.replace(config, **{name: value})
-        else:
-            raise InputError(f"method parameter {name}: unknown; sections {', '.join(METHOD_SECTIONS)} or a "
-                             f"MethodConfig field")
-    return config
 
 
 def method_params(variant: str = "full", overrides: dict[str, Any] | None = None,

@@ -210,7 +210,7 @@ def test_run_lists_outputs_with_their_subfolders(monkeypatch, tmp_path, tiny_vid
 
 
 def test_flow_environment_turns_prefect_telemetry_off_unless_the_user_chose(monkeypatch, tmp_path):
-    from multithumbs.cli import _flow_environment
+    from multithumbs.cli_runtime import flow_environment as _flow_environment
 
     env = {"MULTITHUMBS_CACHE": str(tmp_path), "DO_NOT_TRACK": "0"}
     monkeypatch.setattr(os, "environ", env)

@@ -99,14 +99,16 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Build the benchmark's clips and run the dataset flow over them (resumable; for a schedule, deploy
         flows/dataset.py:reconstruct_dataset, see deploy/README.md)."""
-        from multithumbs.cli import _flow_environment
+        from multithumbs.cli_runtime import flow_environment, flow_logging, start_flow_api
         from multithumbs.errors import InputError
 
-        _flow_environment()
+        flow_environment()
         if perception != "oracle" and not Path(perception).is_dir():
             raise InputError(f"--perception {perception}: neither 'oracle' nor a folder of PHALP results")
+        start_flow_api()
         from flows.dataset import benchmark_items, reconstruct_dataset
 
+        flow_logging()
         items = benchmark_items([str(s) for s in specs], str(data_root), str(out / "clips"), perception,
                                 trust_pickle, None if smpl_dir is None else str(smpl_dir))
         with console.status(f"{len(items)} clips through the dataset flow"):

@@ -36,6 +36,8 @@ from multithumbs.types import PersonTracks, Shots
 
 SOURCES = ("phalp", "hmr2", "oracle")
 REFINERS = ("vitpose", "sam")
+HMR2_INSTALL_HINT = ("install 4DHumans' hmr2 package from its repository with its SMPL model and checkpoint, or "
+                     "import 4DHumans results with phalp:RESULTS.pkl")
 DEFAULT_MODELS = {"vitpose": "usyd-community/vitpose-base-simple", "sam": "facebook/sam-vit-base"}
 
 
@@ -89,6 +91,44 @@ def parse_spec(spec: str) -> list[SpecTerm]:
     if terms[0].backend in ("phalp", "oracle") and not terms[0].argument:
         raise InputError(f"perception spec {spec!r}: {terms[0].backend} needs a file, {terms[0].backend}:PATH")
     return terms
+
+
+def check_backends(terms: list[SpecTerm]) -> None:
+    """Refuse, before any work starts, a spec whose backends are not installed or whose files are missing
+    (what :func:`load_perception` would find only after shot detection). Imports nothing heavy.
+
+    Raises:
+        InputError: hmr2 or detectron2 not installed, a missing ``detector``/``checkpoint`` file, a refiner
+            without ``transformers``.
+    """
+    from multithumbs.extras import is_installed
+
+    for term in terms:
+        if term.backend == "hmr2":
+            options = term.options()
+            unknown = set(options) - {"checkpoint", "detector"}
+            if unknown:
+                raise InputError(f"perception spec term hmr2: unknown option {sorted(unknown)[0]!r}; known: "
+                                 f"checkpoint, detector")
+            if not is_installed("hmr2"):
+                raise InputError(f"perception backend 'hmr2': the hmr2 package is not installed; "
+                                 f"{HMR2_INSTALL_HINT}")
+            if not is_installed("detectron2"):
+                raise InputError("perception backend 'hmr2': detectron2 is not installed (4DHumans detects people "
+                                 "with its ViTDet model); install it, or import 4DHumans results with "
+                                 "phalp:RESULTS.pkl")
+            detector = options.get("detector")
+            if detector is None or not Path(detector).is_file():
+                raise InputError(f"perception backend 'hmr2': detector weights {detector!r} not found; pass the "
+                                 f"local ViTDet checkpoint as hmr2:detector=PATH")
+            if "checkpoint" in options and not Path(options["checkpoint"]).is_file():
+                raise InputError(f"perception backend 'hmr2': checkpoint {options['checkpoint']} not found; "
+                                 f"{HMR2_INSTALL_HINT}")
+        elif term.backend == "oracle" and not Path(term.argument).is_file():
+            raise InputError(f"perception spec term oracle: {term.argument}: no such ground-truth file")
+        elif term.backend in REFINERS and not is_installed("transformers"):
+            raise InputError(f"perception refiner {term.backend}: the transformers package is not installed "
+                             f"(pip install 'multithumbs[learned]')")
 
 
 def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool = False, device: str = "auto",
@@ -189,4 +229,4 @@ def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool
     return tracks
 
 
-__all__ = ["load_perception", "parse_spec", "SpecTerm", "SOURCES", "REFINERS", "DEFAULT_MODELS"]
+__all__ = ["load_perception", "parse_spec", "check_backends", "SpecTerm", "SOURCES", "REFINERS", "DEFAULT_MODELS"]

@@ -25,6 +25,7 @@ from scipy.spatial.transform import Rotation
 
 from multithumbs.appearance import DESCRIPTOR_SIZE
 from multithumbs.errors import InputError
+from multithumbs.perception import HMR2_INSTALL_HINT  # one text for this and the CLI's early check
 from multithumbs.perception.camera import (
     HMR2_CROP_SIZE,
     HMR2_FOCAL_LENGTH,
@@ -35,8 +36,7 @@ from multithumbs.perception.camera import (
 from multithumbs.perception.joints import openpose25_to_smpl24
 from multithumbs.types import PersonTracks, Shots, pack_mask
 
-INSTALL_HINT = ("install 4DHumans' hmr2 package from its repository with its SMPL model and checkpoint, or "
-                "import 4DHumans results with phalp:RESULTS.pkl")
+INSTALL_HINT = HMR2_INSTALL_HINT
 
 
 def require_hmr2() -> Any:

@@ -88,6 +88,9 @@ def register(app: typer.Typer) -> None:
         """Detect the cuts of a video with PySceneDetect."""
         from rich.console import Console
 
+        from multithumbs.extras import require
+
+        require("scenedetect", "multithumbs shots")
         from multithumbs.scene.shots import ShotConfig, detect_shots
 
         key = {"adaptive": "adaptive_threshold", "content": "content_threshold",

@@ -315,7 +315,9 @@ def build_da3_network(model_name: str):
         from depth_anything_3.cfg import create_object, load_config
         from depth_anything_3.registry import MODEL_REGISTRY
     except ImportError:
-        raise InputError("depth-anything-3 backend: the 'depth-anything-3' package is not installed") from None
+        from multithumbs.extras import missing_package_message
+
+        raise InputError(missing_package_message("depth_anything_3", "the depth-anything-3 backend")) from None
     if model_name not in MODEL_REGISTRY:
         raise InputError(f"Depth-Anything-3 model {model_name!r}: unknown; known: {', '.join(MODEL_REGISTRY)}")
     import warnings

@@ -147,6 +147,9 @@ def detect_shots(source, config: ShotConfig = ShotConfig(), fps: float | None = 
         one-frame outliers the detector did not see (``outlier_frames``; empty without
         ``config.reject_flash_frames``).
     """
+    from multithumbs.extras import require
+
+    require("scenedetect", "shot detection")  # not a pip dependency of the project (multithumbs.extras)
     from scenedetect import FrameTimecode, StatsManager
 
     frames, file_fps, name = _frames_of(source)

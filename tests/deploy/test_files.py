@@ -14,9 +14,10 @@ DEPLOY = Path(__file__).resolve().parents[2] / "deploy"
 def test_every_deployment_entrypoint_is_a_flow_with_those_parameters():
     from prefect import Flow
 
-    spec = yaml.safe_load((DEPLOY / "prefect.yaml").read_text())
-    assert len(spec["deployments"]) >= 5
-    for deployment in spec["deployments"]:
+    deployments = [d for name in ("prefect.yaml", "prefect-gpu.yaml")
+                   for d in yaml.safe_load((DEPLOY / name).read_text())["deployments"]]
+    assert len(deployments) >= 5
+    for deployment in deployments:
         path, name = deployment["entrypoint"].split(":")
         flow = getattr(importlib.import_module(path[:-3].replace("/", ".")), name)
         assert isinstance(flow, Flow), deployment["name"]

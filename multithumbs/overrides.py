@@ -1,0 +1,43 @@
+"""A method variant's configuration with a user's JSON overrides applied (``--set section.field=value``).
+
+Kept out of :mod:`tasks.method` (which imports Prefect) so the CLI can refuse a bad ``--set`` before the
+flow's modules are imported.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+
+METHOD_SECTIONS = ("align", "reid", "post")
+"""Sub-configs of :class:`multithumbs.pipeline.MethodConfig` that overrides may name."""
+
+
+def method_config(variant: str = "full", overrides: dict[str, Any] | None = None):
+    """The :class:`~multithumbs.pipeline.MethodConfig` of a variant with JSON overrides applied.
+
+    ``overrides`` maps a section (``align``, ``reid``, ``post``) to ``{field: value}``, or a top-level field
+    of ``MethodConfig`` to its value, e.g. ``{"reid": {"max_distance": 0.8}, "appearance_window": 9}``.
+    Unknown names raise :class:`~multithumbs.errors.InputError`.
+    """
+    from multithumbs.errors import InputError
+    from multithumbs.pipeline import variant_config
+
+    config = variant_config(variant)
+    for name, value in (overrides or {}).items():
+        if name in METHOD_SECTIONS:
+            section = getattr(config, name)
+            known = {f.name: f for f in dataclasses.fields(section)}
+            for field_name, field_value in value.items():
+                if field_name not in known:
+                    raise InputError(f"method parameter {name}.{field_name}: unknown; known: {', '.join(known)}")
+            section = dataclasses.replace(section, **{k: tuple(v) if isinstance(v, list) else v
+                                                      for k, v in value.items()})
+            config = dataclasses.replace(config, **{name: section})
+        elif name in {f.name for f in dataclasses.fields(config)} and name != "variant":
+            config = dataclasses.replace(config, **{name: value})
+        else:
+            raise InputError(f"method parameter {name}: unknown; sections {', '.join(METHOD_SECTIONS)} or a "
+                             f"MethodConfig field")
+    return config
