@@ -82,6 +82,9 @@ def load_hmr2_model(checkpoint: str | Path) -> tuple[Any, Any]:
     ``hmr2.models.load_hmr2`` builds the model with ``init_renderer=True`` (a pyrender ``Renderer``); the
     ``HMR2`` class takes ``init_renderer=False``, so the model is built from its config and checkpoint that
     way (the config is ``model_config.yaml`` two folders above the checkpoint, as ``load_hmr2`` finds it).
+    Checked against 4D-Humans at commit 068130a: ``hmr2/models/hmr2.py`` (``HMR2.__init__(cfg,
+    init_renderer=True)``) and ``hmr2/models/__init__.py`` (``load_hmr2``: ``get_config(...,
+    update_cachedir=True)``, the ViT ``BBOX_SHAPE`` override, ``load_from_checkpoint(..., strict=False)``).
     An hmr2 without that switch falls back to ``load_hmr2``; if that fails for want of a renderer the
     message says what is missing.
 
