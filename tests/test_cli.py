@@ -163,13 +163,31 @@ def test_bench_table_fits_80_columns_with_units(monkeypatch):
     assert "backends:" in text
 
 
+def _keep_env(monkeypatch, name: str) -> None:
+    """Restore ``name`` after the test, absent if it was absent (an empty value is not absent)."""
+    if name in os.environ:
+        monkeypatch.setenv(name, os.environ[name])
+    else:  # setenv records "absent" for the undo, delenv makes it absent now
+        monkeypatch.setenv(name, "")
+        monkeypatch.delenv(name)
+
+
+def _no_prefect_api(monkeypatch) -> None:
+    """The flow is faked in these layout tests: no Prefect API to start or wait for."""
+    import multithumbs.cli as cli
+
+    monkeypatch.setattr(cli, "start_flow_api", lambda: None)
+    monkeypatch.setattr(cli, "flow_logging", lambda: None)
+
+
 def test_demo_title_is_one_line_and_fits_80_columns(monkeypatch, tmp_path):
     import flows.reconstruct
     from multithumbs.bench import METRIC_KEYS
 
     for name in ("PREFECT_HOME", "PREFECT_SERVER_ANALYTICS_ENABLED", "PREFECT_LOGGING_LEVEL",
                  "PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS"):
-        monkeypatch.setenv(name, os.environ.get(name, ""))  # restored afterwards: the demo sets them
+        _keep_env(monkeypatch, name)  # restored afterwards: the demo sets them
+    _no_prefect_api(monkeypatch)
     monkeypatch.setattr(flows.reconstruct, "reconstruct_synthetic",
                         lambda *a, **k: {key: 12.345 for key in METRIC_KEYS})
     text = invoke_at_80(monkeypatch, "demo", "--out", tmp_path / "demo")
@@ -188,7 +206,8 @@ def test_run_lists_outputs_with_their_subfolders(monkeypatch, tmp_path, tiny_vid
              "bvh_0": out / "bvh" / "person_0.bvh", "colmap": out / "colmap" / "images.txt"}
     for name in ("PREFECT_HOME", "PREFECT_SERVER_ANALYTICS_ENABLED", "PREFECT_LOGGING_LEVEL",
                  "PREFECT_SERVER_EPHEMERAL_STARTUP_TIMEOUT_SECONDS"):
-        monkeypatch.setenv(name, os.environ.get(name, ""))
+        _keep_env(monkeypatch, name)
+    _no_prefect_api(monkeypatch)
     seen = {}
 
     def fake_flow(*args, **kwargs):
