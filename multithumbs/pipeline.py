@@ -204,7 +204,8 @@ def propagate(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequen
     for k in range(n_shots):
         traj = trajectories[k]
         a, b = edges[k], edges[k + 1]
-        if independent:
+        if independent or not aligned:
+            # Without a cut (one shot) there is no shared space: the world is the shot's own SLAM frame.
             R_k, t_k = traj.R.astype(np.float64), traj.t.astype(np.float64)
         else:
             if k == 0:

@@ -90,3 +90,22 @@ def test_mismatched_inputs_are_named(tiny, body):
         run_video(tiny.shots, tiny.tracks, tiny.trajectories, [], body, FAST)
     with pytest.raises(InputError, match="track sets"):
         run_video(tiny.shots, tiny.tracks[:1], tiny.trajectories, tiny.spaces, body, FAST)
+
+
+def test_a_video_without_a_cut_is_one_shot_in_its_own_frame():
+    """No cut (e.g. the detector found none in a short clip): no shared space to align, the world is the
+    shot's own SLAM frame; the chain runs instead of failing on a missing boundary."""
+    from multithumbs.body.model import load_body_model
+    from multithumbs.metrics.evaluate import evaluate
+    from multithumbs.pipeline import MethodConfig, run_video
+    from multithumbs.synth.perception import simulate_perception
+    from multithumbs.synth.scene import SceneConfig, synthesize
+    from multithumbs.synth.simulated_geometry import simulate_camera_trajectory
+
+    body = load_body_model()
+    video = synthesize(SceneConfig(num_people=2, num_shots=1, num_frames=10, seed=5, image_size=(180, 320)), body)
+    shots = video.truth.world.shots()
+    result = run_video(shots, simulate_perception(video, body), [simulate_camera_trajectory(video, 0)], [], body,
+                       MethodConfig())
+    scores = evaluate(result, video.truth, body)
+    assert scores["ids"] == 0 and scores["coverage"] > 0.9 and scores["mpjpe"] < 60.0
