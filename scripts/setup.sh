@@ -18,7 +18,9 @@ step() {  # step "what is being installed" command...
   n=$((n + 1))
   printf '[%d/8] %s ... ' "$n" "$1"
   shift
-  "$@"
+  # Machines whose pip.conf names find-links folders that do not exist get one warning per package from
+  # pip; they say nothing about this install, so they are left out (every other message stays).
+  "$@" 2> >(grep -v 'is ignored: it is neither a file nor a directory' >&2)
   printf 'done (%d s)\n' $((SECONDS - start))
 }
 
@@ -54,7 +56,10 @@ check_requirements() {
 step "virtual environment .venv ($("$PY" --version 2>&1))" bash -c '[ -x .venv/bin/python ] || "$0" -m venv .venv' "$PY"
 step "pip, upgraded" "${PIP[@]}" install --upgrade pip
 step "PyTorch 2.13.0, $MODE build" install_torch
-step "multithumbs in editable mode, with its dev tools (.[dev])" "${PIP[@]}" install -e ".[dev]"
+# setuptools boxes a generic note on every editable install (folders named like the package may shadow it
+# on imports; the project's layout is exactly that, on purpose): silenced by its message only.
+step "multithumbs in editable mode, with its dev tools (.[dev])" \
+  env PYTHONWARNINGS="ignore:Editable installation" "${PIP[@]}" install -e ".[dev]"
 # scenedetect asks for opencv-python (GUI), which clobbers the headless cv2: install it alone.
 step "scenedetect 0.7.2 (--no-deps: it asks for the GUI opencv-python)" "${PIP[@]}" install --no-deps scenedetect==0.7.2
 # Depth-Anything-3 (a learned shared-space backend, tested on a tiny random model): its torchvision
