@@ -71,8 +71,9 @@ def test_smoothed_depth_keeps_a_plane_and_ignores_invalid_pixels():
 
 
 def test_a_rounding_level_change_of_the_points_moves_the_result_by_rounding_only(tiny):
-    # The gates are smooth weights fixed per solve (multithumbs.method.view_gates): a 1e-12 relative
-    # change of every point must not switch points in or out and send the solver down another path.
+    # A 1e-12 relative change of every point must not switch points in or out between the solver's
+    # steps and send it down another path. The hard gates pass here; on the standard suite they do not
+    # everywhere (s06 cut 0 moves 0.2 deg: benchmarks/view_registration.py --perturb 1e-12, issue 18).
     scale = float(tiny.space_from_world[0].numpy()[0])
     noisy = simulate_shared_space(tiny.video, 0, SharedSpaceNoise(depth_sigma=0.01, rotation_deg=2.0,
                                                                   translation_sigma=0.03))
