@@ -106,10 +106,12 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
     """
     import time
 
+    from multithumbs.determinism import fix_threads
     from multithumbs.synth.perception import simulate_perception
     from multithumbs.synth.scene import synthesize
     from multithumbs.synth.simulated_geometry import simulate_camera_trajectory, simulate_shared_space
 
+    fix_threads()  # synthesis and simulated perception round by thread count too, not only the method
     video = synthesize(config, body)
     shots = video.truth.world.shots()
     tracks = simulate_perception(video, body, seed=seed)
