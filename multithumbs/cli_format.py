@@ -7,13 +7,16 @@ into several tables that share the row-name column. ``--json`` stays the interfa
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from typing import Mapping, Sequence
 
+import typer
 from rich import box
 from rich.console import Console
 from rich.measure import Measurement
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
 
@@ -127,3 +130,29 @@ def file_lines(files: Mapping[str, str], out_dir: Path, indent: str = "  ") -> l
         return str(path) if text.startswith("..") else text
 
     return [f"{indent}{rel}" for rel in sorted({relative(p) for p in files.values()})]
+
+# Shared by the commands of cli.py and the areas' commands.py.
+console = Console(stderr=True)
+"""Progress, status and notes go to stderr, so --json on stdout stays clean."""
+
+SMPL_OPTION = typer.Option(None, "--smpl-model", help="SMPL model file (.npz or .pkl); default: "
+                           "$MULTITHUMBS_SMPL_MODEL, else the procedural SMPL-format body.")
+
+
+def progress() -> Progress:
+    """A transient progress bar on :data:`console`."""
+    return Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                    TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True)
+
+
+def jsonable(value):
+    """Nested results made JSON-safe: numpy values to lists and numbers, non-finite floats to null."""
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if hasattr(value, "tolist"):
+        return jsonable(value.tolist())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

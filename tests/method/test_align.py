@@ -112,7 +112,7 @@ def test_rotation_matches_roma_at_every_angle():
     import roma
     import torch
 
-    from multithumbs.method.align import _rotvec_to_rotmat
+    from multithumbs.method.align_objective import _rotvec_to_rotmat
     generator = torch.Generator().manual_seed(3)
     rotvec = torch.randn(40, 3, generator=generator, dtype=torch.float64)
     rotvec[:2] = 0.0          # the cameras' update starts at exactly zero: roma's first-order branch
@@ -190,7 +190,8 @@ def _reference_loss(people, space, maps, valid, config, R0, cam_rot, cam_centre,
 def test_the_optimised_objective_is_the_documented_one(tiny, body):
     import torch
 
-    from multithumbs.method.align import _camera_frame_roots, _Problem, point_maps_with_sources
+    from multithumbs.method.align import _camera_frame_roots, point_maps_with_sources
+    from multithumbs.method.align_objective import _Problem
     people = boundary_people(tiny.tracks[0], tiny.tracks[1], body)
     space = tiny.spaces[0]
     maps, valid, single_view, _ = point_maps_with_sources(space)
