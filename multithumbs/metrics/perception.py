@@ -1,0 +1,131 @@
+"""How well per-shot perception sees the people that are there: detection, 2D keypoints, per-frame bodies.
+
+These score a perception backend's :class:`~multithumbs.types.PersonTracks` of one shot against the true
+people of that shot (:func:`multithumbs.perception.oracle.oracle_tracks` gives them for synthetic and
+ground-truth data), frame by frame, before any of the method runs:
+
+* **matching**: in every frame, predicted and true people are paired one to one by the Hungarian
+  algorithm on the IoU of their boxes, a pair needing IoU ≥ 0.5 (the PASCAL/COCO criterion). True boxes
+  are the true mesh projected and clipped to the image (amodal, like BlazePose's landmark boxes, which
+  cover occluded limbs too);
+* **recall** over *eligible* true people (at least ``min_height`` pixels tall in the image, and at
+  least half of their silhouette seen: not beyond the frame's edge, not behind someone else), **precision** over all predictions, where a prediction
+  paired with a true person who is there but not eligible counts neither way;
+* **PCK@α**: the share of a paired person's joints within ``α × max(box width, height)`` of the truth,
+  over the joints the truth marks visible and the backend reports (confidence > 0);
+* **MPJPE / PA-MPJPE** of the paired people's 24 SMPL joints in the camera frame, pelvis-aligned (the
+  per-frame convention of HMR-type estimators, which ignore depth).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from multithumbs.metrics.identity import box_iou, projected_boxes
+
+MIN_IOU = 0.5
+
+
+def match_people(pred_boxes: np.ndarray, pred_valid: np.ndarray, true_boxes: np.ndarray, true_present: np.ndarray,
+                 min_iou: float = MIN_IOU) -> np.ndarray:
+    """Per-frame one-to-one pairing of true and predicted people by box IoU.
+
+    Args:
+        pred_boxes: ``(N, T, 4)``; pred_valid ``(N, T)``.
+        true_boxes: ``(P, T, 4)``; true_present ``(P, T)``.
+    Returns:
+        ``(P, T)`` int: the paired prediction's index, -1 where none.
+    """
+    p, t = true_present.shape
+    out = np.full((p, t), -1, dtype=np.int64)
+    for frame in range(t):
+        truth = np.flatnonzero(true_present[:, frame])
+        pred = np.flatnonzero(pred_valid[:, frame])
+        if truth.size == 0 or pred.size == 0:
+            continue
+        iou = box_iou(true_boxes[truth, frame], pred_boxes[pred, frame])
+        rows, cols = linear_sum_assignment(np.where(iou >= min_iou, iou, 0.0), maximize=True)
+        for r, c in zip(rows, cols):
+            if iou[r, c] >= min_iou:
+                out[truth[r], frame] = pred[c]
+    return out
+
+
+def silhouette_area(vertices_cam: np.ndarray, faces: np.ndarray, K: np.ndarray, image_size: tuple[int, int],
+                    margin: float = 1.0) -> np.ndarray:
+    """Pixels the mesh would cover if nothing hid it, counted on a canvas ``margin`` image sizes wider
+    on every side than the image (so that parts beyond the frame count): ``(..., V, 3)`` to ``(...)``."""
+    h, w = image_size
+    pad = np.array([margin * w, margin * h])
+    size = (int(round(h + 2 * pad[1])), int(round(w + 2 * pad[0])))
+    flat = vertices_cam.reshape(-1, *vertices_cam.shape[-2:])
+    out = np.zeros(len(flat))
+    for i, points in enumerate(flat):
+        if not np.all(points[:, 2] > 1e-6):
+            continue
+        uv = points[:, :2] / points[:, 2:] * K[[0, 1], [0, 1]] + K[[0, 1], 2] + pad
+        canvas = np.zeros(size, np.uint8)
+        cv2.fillPoly(canvas, np.round(uv[faces]).astype(np.int32), 1)
+        out[i] = canvas.sum()
+    return out.reshape(vertices_cam.shape[:-2])
+
+
+def eligible_people(true_vertices_cam: np.ndarray, faces: np.ndarray, K: np.ndarray, image_size: tuple[int, int],
+                    visible_pixels: np.ndarray, present: np.ndarray, min_height: float = 80.0,
+                    min_visible: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """True boxes ``(P, T, 4)`` (mesh projected, clipped) and the ``(P, T)`` people detection must find:
+    present, at least ``min_height`` px tall in the image, and with at least ``min_visible`` of their
+    silhouette seen (``visible_pixels (P, T)``, the truth's own masks, over :func:`silhouette_area`: the
+    frame's edge and other people both hide it)."""
+    boxes, in_image = projected_boxes(true_vertices_cam, K, image_size)
+    area = silhouette_area(true_vertices_cam, faces, K, image_size)
+    seen = np.where(area > 0, visible_pixels / np.where(area > 0, area, 1), 0.0)
+    eligible = present & in_image & (boxes[..., 3] - boxes[..., 1] >= min_height) & (seen >= min_visible)
+    return boxes, eligible
+
+
+@dataclass(frozen=True)
+class DetectionCounts:
+    """Detection tallies of one shot (sums over frames)."""
+
+    true_positives: int
+    """Eligible true people paired with a prediction."""
+    eligible: int
+    """Eligible true people."""
+    predictions: int
+    """Valid predictions."""
+    false_positives: int
+    """Predictions paired with no true person that is there."""
+
+    @property
+    def recall(self) -> float:
+        return self.true_positives / self.eligible if self.eligible else float("nan")
+
+    @property
+    def precision(self) -> float:
+        return 1.0 - self.false_positives / self.predictions if self.predictions else float("nan")
+
+
+def detection_counts(matched: np.ndarray, eligible: np.ndarray, pred_valid: np.ndarray) -> DetectionCounts:
+    """Tallies from :func:`match_people`'s pairing (``(P, T)``), eligibility ``(P, T)``, ``pred_valid (N, T)``."""
+    paired_pred = np.zeros_like(pred_valid, dtype=bool)
+    people, frames = np.nonzero(matched >= 0)
+    paired_pred[matched[people, frames], frames] = True
+    return DetectionCounts(int(((matched >= 0) & eligible).sum()), int(eligible.sum()), int(pred_valid.sum()),
+                           int((pred_valid & ~paired_pred).sum()))
+
+
+def pck(pred_uv: np.ndarray, true_uv: np.ndarray, joints: np.ndarray, box_size: np.ndarray,
+        alpha: float = 0.1) -> tuple[int, int]:
+    """Correct and counted keypoints: ``pred_uv, true_uv (..., J, 2)``, ``joints (..., J)`` bool (which
+    pairs count), ``box_size (...)`` pixels. Returns ``(correct, counted)``."""
+    error = np.linalg.norm(pred_uv - true_uv, axis=-1)
+    correct = (error <= alpha * box_size[..., None]) & joints
+    return int(correct.sum()), int(joints.sum())
+
+
+__all__ = ["match_people", "silhouette_area", "eligible_people", "DetectionCounts", "detection_counts", "pck", "MIN_IOU"]
