@@ -1,0 +1,156 @@
+"""The CPU perception backend (BlazePose + body fitting) against the rendered truth of the standard suite.
+
+Every scene is rendered; the backend sees only its frames (true cuts and true intrinsics are given, so
+this measures perception alone). Printed per scene and over the suite:
+
+* detection recall and precision (IoU ≥ 0.5 of amodal boxes; recall over people ≥ 80 px tall with at
+  least half their silhouette seen; ``multithumbs.metrics.perception``);
+* 2D PCK@0.1 of the box size on the joints the truth marks visible;
+* per-frame MPJPE and PA-MPJPE (mm, pelvis-aligned camera-frame joints) of the fitted bodies;
+* seconds per frame, split into landmarks (detector + landmark model + tracking) and fitting, and the
+  same for a 4-person scene (s03) alone.
+
+    .venv/bin/python benchmarks/cpu_perception.py [--scenes s01_two_people_20deg,...] [--runs 1]
+        [--no-fit] [--json OUT]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "2")
+
+import argparse
+import json
+import statistics
+import time
+
+import numpy as np
+
+
+def padded_landmark_boxes(boxes: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """Landmark boxes widened to the body's surface, for ``--no-fit``: landmarks are joint centres and
+    face points, so the skin lies ~10 % of the height beyond them at the sides and above the eyes."""
+    h, w = image_size
+    height = (boxes[..., 3] - boxes[..., 1])[..., None]
+    padded = boxes + height * np.array([-0.1, -0.12, 0.1, 0.02])
+    return np.clip(padded, -0.5, [w - 0.5, h - 0.5, w - 0.5, h - 0.5])
+
+
+def score_scene(name: str, fit: bool = True) -> dict:
+    import torch
+
+    from multithumbs.body.model import load_body_model
+    from multithumbs.metrics.identity import projected_boxes
+    from multithumbs.metrics.perception import detection_counts, eligible_people, match_people, pck
+    from multithumbs.metrics.pose import mpjpe, pa_mpjpe
+    from multithumbs.perception.blazepose_backend import BlazePoseConfig, poses_to_tracks
+    from multithumbs.perception.blazepose_models import BlazePose
+    from multithumbs.perception.joints import BLAZEPOSE_SMPL_JOINTS
+    from multithumbs.perception.oracle import oracle_tracks
+    from multithumbs.perception.pose_tracking import track_shot
+    from multithumbs.synth.scene import synthesize
+    from multithumbs.synth.suite import suite_scene
+
+    torch.set_num_threads(2)
+    body = load_body_model()
+    video = synthesize(suite_scene("standard", name), body)
+    truth = oracle_tracks(video.truth, body, video.instance)
+    K = video.truth.world.K[0]
+    model = BlazePose(num_threads=2)
+    config = BlazePoseConfig()
+    tallies = np.zeros(4, np.int64)
+    correct = counted = 0
+    errors, pa_errors = [], []
+    seconds = {"landmarks": 0.0, "fitting": 0.0}
+    frames = 0
+    for true_tr, (a, b) in zip(truth, video.truth.world.shots().ranges):
+        start = time.perf_counter()
+        poses = track_shot(video.frames[a:b], model, config.tracker)
+        seconds["landmarks"] += time.perf_counter() - start
+        frames += b - a
+        with torch.no_grad():
+            out = body.forward(true_tr.global_orient, true_tr.body_pose, true_tr.betas, true_tr.transl)
+        true_vertices, true_joints = out.vertices.double().numpy(), out.joints.double().numpy()
+        visible = np.unpackbits(true_tr.masks, axis=-1).sum((-1, -2))
+        true_boxes, eligible = eligible_people(true_vertices, body.faces, K, video.truth.world.image_size, visible,
+                                               true_tr.valid)
+        h, w = video.truth.world.image_size
+        if fit:
+            start = time.perf_counter()
+            tracks = poses_to_tracks(poses, true_tr.shot_index, a, K, (h, w), body, config.fit)
+            seconds["fitting"] += time.perf_counter() - start
+            pred_kp = tracks.keypoints2d
+            with torch.no_grad():
+                fitted = body.forward(tracks.global_orient, tracks.body_pose, tracks.betas, tracks.transl)
+            # The fitted mesh projected, the same kind of box as the truth's (and as the IDs metric uses).
+            pred_boxes, _ = projected_boxes(fitted.vertices.double().numpy(), K, (h, w))
+        else:
+            from multithumbs.perception.joints import blazepose33_to_smpl24
+
+            pred_kp = blazepose33_to_smpl24(np.concatenate([poses.image[..., :2], poses.image[..., 3:4]], -1))
+            pred_boxes = padded_landmark_boxes(poses.boxes, (h, w))
+        matched = match_people(pred_boxes, poses.valid, true_boxes, true_tr.valid)
+        counts = detection_counts(matched, eligible, poses.valid)
+        tallies += [counts.true_positives, counts.eligible, counts.predictions, counts.false_positives]
+        people, times = np.nonzero((matched >= 0) & eligible)
+        pred_index = matched[people, times]
+        joints = np.zeros(24, bool)
+        joints[list(BLAZEPOSE_SMPL_JOINTS)] = True
+        true_kp = true_tr.keypoints2d[people, times]
+        size = np.maximum(true_boxes[people, times, 2] - true_boxes[people, times, 0],
+                          true_boxes[people, times, 3] - true_boxes[people, times, 1])
+        c, n = pck(pred_kp[pred_index, times, :, :2], true_kp[..., :2], (true_kp[..., 2] > 0) & joints, size)
+        correct, counted = correct + c, counted + n
+        if fit and people.size:
+            with torch.no_grad():
+                pj = body.joints(tracks.global_orient, tracks.body_pose, tracks.betas, tracks.transl).double().numpy()
+            pair_pred = pj[pred_index, times][None]
+            pair_true = true_joints[people, times][None]
+            ok = np.ones((1, people.size), bool)
+            errors.append(np.asarray(mpjpe(pair_pred, pair_true, ok).values))
+            pa_errors.append(np.asarray(pa_mpjpe(pair_pred, pair_true, ok).values))
+    tp, eligible_n, predictions, fp = (int(x) for x in tallies)
+    return {
+        "scene": name, "recall": tp / eligible_n if eligible_n else float("nan"),
+        "precision": 1 - fp / predictions if predictions else float("nan"), "eligible": eligible_n,
+        "pck": correct / counted if counted else float("nan"),
+        "mpjpe": float(np.concatenate(errors).mean()) if errors else float("nan"),
+        "pa_mpjpe": float(np.concatenate(pa_errors).mean()) if pa_errors else float("nan"),
+        "landmark_s_per_frame": seconds["landmarks"] / frames, "fit_s_per_frame": seconds["fitting"] / frames,
+        "people": int(video.truth.world.valid.shape[0]),
+    }
+
+
+def main() -> None:
+    from multithumbs.synth.suite import suite
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", default=None, help="comma-separated scene names (default: all 12)")
+    parser.add_argument("--runs", type=int, default=1, help="runs of the whole measurement; medians are quoted")
+    parser.add_argument("--no-fit", action="store_true", help="tracking and 2D only (no body fitting)")
+    parser.add_argument("--json", default=None, help="write the per-scene results here")
+    args = parser.parse_args()
+    names = args.scenes.split(",") if args.scenes else [s.name for s in suite("standard")]
+    runs = [[score_scene(n, fit=not args.no_fit) for n in names] for _ in range(args.runs)]
+    rows = runs[0]
+    keys = ("recall", "precision", "pck", "mpjpe", "pa_mpjpe", "landmark_s_per_frame", "fit_s_per_frame")
+    print(f"{'scene':<32} {'P':>2} {'recall':>6} {'prec':>6} {'PCK':>6} {'MPJPE':>6} {'PA':>6} {'lm s/f':>7} "
+          f"{'fit s/f':>7}")
+    for i, row in enumerate(rows):
+        med = {k: statistics.median(run[i][k] for run in runs) for k in keys}
+        print(f"{row['scene']:<32} {row['people']:>2} {med['recall']:6.3f} {med['precision']:6.3f} {med['pck']:6.3f} "
+              f"{med['mpjpe']:6.1f} {med['pa_mpjpe']:6.1f} {med['landmark_s_per_frame']:7.3f} "
+              f"{med['fit_s_per_frame']:7.3f}")
+    total = {k: statistics.median(statistics.fmean(r[k] for r in run) for run in runs) for k in keys}
+    print(f"{'mean':<32} {'':>2} {total['recall']:6.3f} {total['precision']:6.3f} {total['pck']:6.3f} "
+          f"{total['mpjpe']:6.1f} {total['pa_mpjpe']:6.1f} {total['landmark_s_per_frame']:7.3f} "
+          f"{total['fit_s_per_frame']:7.3f}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(runs, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
