@@ -109,8 +109,8 @@ def score_scene(name: str, fit: bool = True) -> dict:
             pair_pred = pj[pred_index, times][None]
             pair_true = true_joints[people, times][None]
             ok = np.ones((1, people.size), bool)
-            errors.append(np.asarray(mpjpe(pair_pred, pair_true, ok).values))
-            pa_errors.append(np.asarray(pa_mpjpe(pair_pred, pair_true, ok).values))
+            errors.append(np.asarray(mpjpe(pair_pred, pair_true, ok).values).ravel())
+            pa_errors.append(np.asarray(pa_mpjpe(pair_pred, pair_true, ok).values).ravel())
     tp, eligible_n, predictions, fp = (int(x) for x in tallies)
     return {
         "scene": name, "recall": tp / eligible_n if eligible_n else float("nan"),

@@ -80,8 +80,9 @@ RUN_OUTPUTS = ("result.npz", "metrics.json", "overlay.mp4", "report.md", "output
 def run_cmd(
     video: Path = typer.Argument(..., help="The edited video."),
     out: Path = typer.Option(..., "--out", help="Output folder (created if missing)."),
-    perception: str = typer.Option(..., "--perception", help="Per-shot people: 'phalp:RESULTS.pkl' (4DHumans/PHALP "
-                                   "results), 'hmr2', optionally '+vitpose' '+sam' refiners."),
+    perception: str = typer.Option("blazepose", "--perception", help="Per-shot people: 'blazepose' (on CPU, from "
+                                   "the pixels), 'phalp:RESULTS.pkl' (4DHumans/PHALP results), 'hmr2'; optionally "
+                                   "'+vitpose' '+sam' refiners."),
     trust_pickle: bool = typer.Option(False, "--trust-pickle", help="Allow loading pickled results (pickles run "
                                       "code when loaded: only for files you trust)."),
     device: str = typer.Option("auto", "--device", help="Torch device of the learned perception backends (hmr2, "
@@ -147,7 +148,9 @@ def run_cmd(
     from multithumbs.bench import METRIC_KEYS
 
     flow_logging()
-    with console.status(f"reconstructing {video.name}: {info.num_frames} frames, {info.width}x{info.height}"):
+    from multithumbs.cli_format import stage_bars
+
+    with stage_bars(f"reconstructing {video.name}: {info.num_frames} frames, {info.width}x{info.height}"):
         summary = reconstruct_video(str(video.resolve()), str(out_dir.resolve()),
                                     store or str((out_dir / "store").resolve()), perception, trust_pickle, K,
                                     variant, method, None if truth is None else str(truth.resolve()),

@@ -7,6 +7,7 @@ into several tables that share the row-name column. ``--json`` stays the interfa
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 from pathlib import Path
@@ -16,7 +17,8 @@ import typer
 from rich import box
 from rich.console import Console
 from rich.measure import Measurement
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn,
+                           TimeRemainingColumn)
 from rich.table import Table
 
 
@@ -143,6 +145,35 @@ def progress() -> Progress:
     """A transient progress bar on :data:`console`."""
     return Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                     TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True)
+
+
+@contextlib.contextmanager
+def stage_bars(description: str):
+    """One live display for a run: a spinner line for the whole, and a bar per label the stages report
+    (:mod:`multithumbs.progress`; e.g. ``blazepose shot 2/4``), each removed when done."""
+    from multithumbs.progress import add_listener, remove_listener
+
+    if not console.is_terminal:  # logs and pipes get the result, not a display redrawn in place
+        yield None
+        return
+    bars = Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TimeElapsedColumn(), console=console, transient=True)
+    tasks: dict[str, int] = {}
+    bars.add_task(description, total=None)
+
+    def listen(label: str, done: int, total: int) -> None:
+        if label not in tasks:
+            tasks[label] = bars.add_task(label, total=total or None)
+        bars.update(tasks[label], completed=done)
+        if total and done >= total:
+            bars.remove_task(tasks[label])
+
+    add_listener(listen)
+    try:
+        with bars:
+            yield bars
+    finally:
+        remove_listener(listen)
 
 
 def jsonable(value):

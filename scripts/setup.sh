@@ -16,7 +16,7 @@ n=0
 step() {  # step "what is being installed" command...
   local start=$SECONDS
   n=$((n + 1))
-  printf '[%d/8] %s ... ' "$n" "$1"
+  printf '[%d/9] %s ... ' "$n" "$1"
   shift
   # Machines whose pip.conf names find-links folders that do not exist get one warning per package from
   # pip; they say nothing about this install, so they are left out (every other message stays).
@@ -69,5 +69,8 @@ step "depth-anything-3 0.1.1 (--no-deps: its torchvision breaks the CPU torch)" 
 # TrackEval, the reference CLEAR-MOT evaluator the IDs tests compare with: it asks for opencv-python (GUI)
 # too, and its CLEAR metric needs only numpy and scipy.
 step "trackeval 1.3.0 (--no-deps: it asks for the GUI opencv-python)" "${PIP[@]}" install --no-deps trackeval==1.3.0
+# BlazePose's model files, the CPU perception backend's weights: taken out of MediaPipe's official wheel
+# (downloaded without its dependencies, which pin numpy<2) into .venv/share/multithumbs/blazepose.
+step "BlazePose models from the mediapipe 0.10.21 wheel" .venv/bin/python -m multithumbs.perception.blazepose_models install
 step "pip check (known exceptions: docs/INSTALL.md)" check_requirements
 echo "ready in $((SECONDS - total)) s: .venv/bin/multithumbs --help"

@@ -161,9 +161,14 @@ def perceive_people(store_url: str, inputs: dict[str, ArtifactRef], params: dict
         from multithumbs.body.model import load_body_model
         from multithumbs.perception import load_perception
 
+        from tasks.progress import stage_progress
+
         K = None if params.get("K") is None else np.asarray(params["K"], np.float64)
+        source = spec.split("+")[0].split(":")[0]
         return load_perception(spec, video_path, shots, trust=params["trust"], intrinsics=K,
-                               body=load_body_model(smpl_model), device=device)
+                               body=load_body_model(smpl_model), device=device,
+                               progress=stage_progress(f"perception: {source} on {shots.num_frames} frames",
+                                                       shots.num_frames, lambda label: label.startswith(source)))
     return _parts("perception", compute, store_url, params, inputs, shots.num_shots)
 
 

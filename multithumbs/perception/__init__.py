@@ -4,7 +4,9 @@
 source and optional refiners, joined by ``+``::
 
     SPEC     := SOURCE ( "+" REFINER )*
-    SOURCE   := "phalp:" PATH                    4DHumans/PHALP results (.pkl, joblib); needs trust=True
+    SOURCE   := "blazepose"                      BlazePose on CPU with bodies fitted to its landmarks
+                                                 (:mod:`.blazepose_backend`; the default of ``run``)
+              | "phalp:" PATH                    4DHumans/PHALP results (.pkl, joblib); needs trust=True
               | "hmr2" [ ":" OPTIONS ]           HMR2 on the video (the hmr2 package);
                                                  OPTIONS: checkpoint=PATH,detector=PATH
               | "oracle:" PATH                   exact tracks from a ground-truth .npz (:mod:`.oracle`:
@@ -14,12 +16,13 @@ source and optional refiners, joined by ``+``::
     MODEL    := a local folder (save_pretrained) or a hub name already in the Hugging Face cache;
                 defaults usyd-community/vitpose-base-simple and facebook/sam-vit-base
 
-Examples: ``phalp:results/demo_video.pkl``, ``hmr2:detector=/models/vitdet.pkl``,
+Examples: ``blazepose``, ``blazepose+sam``, ``phalp:results/demo_video.pkl``, ``hmr2:detector=/models/vitdet.pkl``,
 ``phalp:out.pkl+vitpose+sam:/models/sam-vit-base``. ``+`` separates terms, so paths cannot contain it.
 After the source and refiners, appearance is described from the video's pixels
 (:mod:`multithumbs.perception.appearance`, PHALP's ``appe`` codes vet it). Nothing is downloaded.
 
-Modules: :mod:`.phalp` (import/export of PHALP results), :mod:`.camera` (HMR2's camera model),
+Modules: :mod:`.blazepose_backend` (the CPU source: :mod:`.blazepose`, :mod:`.blazepose_models`,
+:mod:`.pose_tracking`, :mod:`.body_fit`), :mod:`.phalp` (import/export of PHALP results), :mod:`.camera` (HMR2's camera model),
 :mod:`.joints` (COCO-17 / OpenPose to SMPL-24), :mod:`.transformers_backends` (ViTPose, SAM),
 :mod:`.hmr2` (HMR2 adapter), :mod:`.appearance` (appearance from pixels).
 """
@@ -34,7 +37,9 @@ import numpy as np
 from multithumbs.errors import InputError
 from multithumbs.types import PersonTracks, Shots
 
-SOURCES = ("phalp", "hmr2", "oracle")
+SOURCES = ("blazepose", "phalp", "hmr2", "oracle")
+DEFAULT_SPEC = "blazepose"
+"""The perception ``run`` uses when none is given: it needs nothing beyond ``scripts/setup.sh``."""
 REFINERS = ("vitpose", "sam")
 HMR2_INSTALL_HINT = ("install 4DHumans' hmr2 package from its repository with its SMPL model and checkpoint, or "
                      "import 4DHumans results with phalp:RESULTS.pkl")
@@ -104,7 +109,13 @@ def check_backends(terms: list[SpecTerm]) -> None:
     from multithumbs.extras import is_installed
 
     for term in terms:
-        if term.backend == "hmr2":
+        if term.backend == "blazepose":
+            if term.argument:
+                raise InputError(f"perception spec term blazepose:{term.argument}: blazepose takes no options")
+            from multithumbs.perception.blazepose_models import check_models
+
+            check_models()
+        elif term.backend == "hmr2":
             options = term.options()
             unknown = set(options) - {"checkpoint", "detector"}
             if unknown:
@@ -149,7 +160,7 @@ def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool
             ``time`` (PHALP's extractor counts from 1).
         progress: optional ``callable(stage: str, done: int, total: int)``.
         intrinsics: ``(3, 3)`` the camera the method will use (default: the 60° guess the method uses,
-            :func:`multithumbs.scene.two_view.default_intrinsics`). The keypoints of ``phalp`` and ``hmr2``
+            :func:`multithumbs.scene.two_view.default_intrinsics`); ``blazepose`` fits its bodies in it. The keypoints of ``phalp`` and ``hmr2``
             are HMR2's mesh joints projected through its own camera, and are reprojected through this one
             (:func:`.model_keypoints.reproject_model_keypoints`) before any refiner replaces them.
         model_keypoints: what those keypoints become: ``"reproject"`` (default), ``"as_is"`` (HMR2's
@@ -178,6 +189,18 @@ def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool
                               first_frame_number=first_frame_number, video_name=Path(video_path).stem)
         tracks, boxes = list(imported.tracks), list(imported.boxes)
         uv, uv_valid = imported.uv_appearance, imported.uv_valid
+    elif source.backend == "blazepose":
+        from multithumbs.perception.blazepose_backend import run_blazepose
+
+        if intrinsics is None:
+            from multithumbs.scene.two_view import default_intrinsics
+
+            intrinsics = default_intrinsics(info.width, info.height)
+        tracks = run_blazepose(video_path, shots, intrinsics, body,
+                               progress=(lambda shot, done, total: progress(f"blazepose shot {shot + 1}/"
+                                                                            f"{shots.num_shots}", done, total))
+                               if progress else None)
+        boxes = [people_boxes(tr) for tr in tracks]
     elif source.backend == "oracle":
         from multithumbs.body.model import load_body_model
         from multithumbs.io import load_ground_truth
@@ -229,4 +252,16 @@ def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool
     return tracks
 
 
-__all__ = ["load_perception", "parse_spec", "check_backends", "SpecTerm", "SOURCES", "REFINERS", "DEFAULT_MODELS"]
+def people_boxes(tracks: PersonTracks) -> np.ndarray:
+    """``(P, T, 4)`` x0, y0, x1, y1 of each person's mask (zeros where empty): the boxes refiners prompt with."""
+    masks = np.unpackbits(tracks.masks, axis=-1)[..., : tracks.image_size[1]].astype(bool)
+    rows, cols = masks.any(-1), masks.any(-2)
+    out = np.zeros((*tracks.valid.shape, 4))
+    for index in np.ndindex(*tracks.valid.shape):
+        r, c = np.flatnonzero(rows[index]), np.flatnonzero(cols[index])
+        if r.size and c.size:
+            out[index] = (c[0], r[0], c[-1], r[-1])
+    return out
+
+
+__all__ = ["load_perception", "people_boxes", "DEFAULT_SPEC", "parse_spec", "check_backends", "SpecTerm", "SOURCES", "REFINERS", "DEFAULT_MODELS"]

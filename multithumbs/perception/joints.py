@@ -81,20 +81,17 @@ BLAZEPOSE33_TO_SMPL24: dict[int, int] = {
     11: 16, 12: 17, 13: 18, 14: 19, 15: 20, 16: 21,     # shoulders, elbows, wrists
 }
 """BlazePose landmark index -> SMPL joint index. BlazePose's hips, knees, ankles, shoulders, elbows and
-wrists are those joints; the pelvis is the mid-point of its hips (as MediaPipe's world origin is). Its
-face, hand and foot points (heel, toe tip) are surface points, not SMPL joints, and are left out."""
+wrists are those joints. It has no pelvis: the mid-point of its hips (MediaPipe's world origin) lies about
+9 cm below SMPL's, so the pelvis is left out like COCO's (the method falls back to the mid-hip). Its
+face, hand and foot points (heel, toe tip) are surface points, not SMPL joints, and are left out too."""
 
-BLAZEPOSE_SMPL_JOINTS: tuple[int, ...] = (0,) + tuple(sorted(BLAZEPOSE33_TO_SMPL24.values()))
+BLAZEPOSE_SMPL_JOINTS: tuple[int, ...] = tuple(sorted(BLAZEPOSE33_TO_SMPL24.values()))
 """The SMPL joints :func:`blazepose33_to_smpl24` fills."""
 
 
 def blazepose33_to_smpl24(landmarks: np.ndarray) -> np.ndarray:
-    """BlazePose's 33 landmarks ``(..., 33, C)`` (last column a confidence) to SMPL order ``(..., 24, C)``:
-    mapped joints copied, the pelvis the mean of the hips with the lower of their confidences, others 0."""
+    """BlazePose's 33 landmarks ``(..., 33, C)`` to SMPL order ``(..., 24, C)``; unmapped joints are 0."""
     lm = np.asarray(landmarks, dtype=np.float64)
     if lm.shape[-2] != 33:
         raise ValueError(f"expected BlazePose's 33 landmarks (..., 33, C), got {lm.shape}")
-    out = _remap(lm, BLAZEPOSE33_TO_SMPL24)
-    out[..., 0, :-1] = (lm[..., 23, :-1] + lm[..., 24, :-1]) / 2
-    out[..., 0, -1] = np.minimum(lm[..., 23, -1], lm[..., 24, -1])
-    return out
+    return _remap(lm, BLAZEPOSE33_TO_SMPL24)

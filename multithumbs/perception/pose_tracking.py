@@ -55,10 +55,12 @@ class TrackerConfig:
     """Overlap of two people's landmark boxes that means they follow one person."""
     nested_fraction: float = 0.8
     """Share of the smaller of two landmark boxes inside the larger that also means one person."""
+    mask_overlap: float = 0.7
+    """Share of the smaller of two segmentations inside the other that also means one person."""
     min_extent: float = 0.3
     """Smallest long side of a pose's landmark box, as a share of its square's side, for it to count."""
-    min_frames: int = 3
-    """Tracks seen in fewer frames are dropped (detector false positives)."""
+    min_frames: int = 6
+    """Tracks seen in fewer frames (a quarter second at 24 fps) are dropped: passing misreadings."""
     mask_probability: float = 0.5
     """Segmentation probability at which a pixel belongs to a person."""
     paint_probability: float = 0.3
@@ -129,11 +131,18 @@ def _plausible(found: bp.Landmarks, config: TrackerConfig) -> bool:
                 and max(box[2] - box[0], box[3] - box[1]) >= config.min_extent * found.roi.size)
 
 
-def same_person(a: np.ndarray, b: np.ndarray, config: TrackerConfig) -> bool:
-    """Two landmark boxes on one person: IoU ≥ ``duplicate_iou``, or one nearly inside the other."""
-    inter = np.prod(np.clip(np.minimum(a[2:], b[2:]) - np.maximum(a[:2], b[:2]), 0, None))
-    smaller = min(np.prod(a[2:] - a[:2]), np.prod(b[2:] - b[:2]))
-    return box_iou(a, b) >= config.duplicate_iou or (smaller > 0 and inter / smaller >= config.nested_fraction)
+def same_person(a: bp.Landmarks, b: bp.Landmarks, config: TrackerConfig) -> bool:
+    """Two poses on one person: landmark boxes at IoU ≥ ``duplicate_iou`` or one nearly inside the other,
+    or segmentations mostly the same pixels (two readings of one body in different squares, as close-ups
+    give)."""
+    box_a, box_b = landmark_box(a), landmark_box(b)
+    inter = np.prod(np.clip(np.minimum(box_a[2:], box_b[2:]) - np.maximum(box_a[:2], box_b[:2]), 0, None))
+    smaller = min(np.prod(box_a[2:] - box_a[:2]), np.prod(box_b[2:] - box_b[:2]))
+    if box_iou(box_a, box_b) >= config.duplicate_iou or (smaller > 0 and inter / smaller >= config.nested_fraction):
+        return True
+    mask_a, mask_b = a.segmentation >= config.mask_probability, b.segmentation >= config.mask_probability
+    fewer = min(mask_a.sum(), mask_b.sum())
+    return bool(fewer > 0 and (mask_a & mask_b).sum() / fewer >= config.mask_overlap)
 
 
 def _inside(point: np.ndarray, box: np.ndarray) -> bool:
@@ -203,7 +212,7 @@ def _find_people(frame: np.ndarray, model, config: TrackerConfig, tracks: list[_
         found = model.landmarks(frame, bp.roi_from_detection(detection))
         calls[1] += 1
         box = landmark_box(found)
-        if not _plausible(found, config) or _claimed(detection, live) or any(same_person(box, tr.box, config)
+        if not _plausible(found, config) or _claimed(detection, live) or any(same_person(found, tr.last, config)
                                                                              for tr in live):
             x0, y0, x1, y1 = np.round(detection.face_box).astype(int)
             canvas[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = 127
@@ -256,7 +265,7 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
         live.sort(key=lambda tr: tr.track_id)
         for i, a in enumerate(live):
             for b in live[i + 1:]:
-                if b.missed == 0 and a.missed == 0 and same_person(a.box, b.box, config):
+                if b.missed == 0 and a.missed == 0 and same_person(a.last, b.last, config):
                     # b followed a onto a's person (its own was hidden): it is lost, last seen where it was.
                     b.frames.pop(t, None)
                     b.last, b.missed = b.before or b.last, 1

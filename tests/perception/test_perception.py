@@ -22,8 +22,8 @@ def test_parse_spec_grammar():
 
 
 @pytest.mark.parametrize("spec, match", [
-    ("", "empty; known backends: phalp, hmr2, oracle, vitpose, sam"),
-    ("openpose:x", "unknown backend 'openpose'; known backends: phalp, hmr2, oracle, vitpose, sam"),
+    ("", "empty; known backends: blazepose, phalp, hmr2, oracle, vitpose, sam"),
+    ("openpose:x", "unknown backend 'openpose'; known backends: blazepose, phalp, hmr2, oracle, vitpose, sam"),
     ("phalp:r.pkl+dino", "unknown backend 'dino'"),
     ("vitpose+sam:/m", "vitpose refines existing tracks; start with a track source"),
     ("phalp:a.pkl+hmr2", "only one track source"),

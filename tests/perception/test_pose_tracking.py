@@ -104,7 +104,7 @@ def test_two_people_cross_and_keep_their_ids():
 
 
 def test_greying_out_finds_everyone_in_the_first_frame():
-    frames = render({k: [(60 + 90 * k, 120)] * 5 for k in range(4)}, 5)
+    frames = render({k: [(60 + 90 * k, 120)] * 8 for k in range(4)}, 8)
     poses = track_shot(frames, ColourModel())
     assert len(poses.track_ids) == 4
     assert poses.valid[:, 0].all()

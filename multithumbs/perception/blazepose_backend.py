@@ -1,0 +1,144 @@
+"""People from the pixels on CPU: BlazePose tracks and SMPL bodies fitted to them, per shot.
+
+The ``blazepose`` perception source (the default of ``multithumbs run``). For each shot:
+
+1. :func:`multithumbs.perception.pose_tracking.track_shot` finds and follows the people with BlazePose's
+   detector and landmark model (:mod:`.blazepose`, weights from MediaPipe's wheel, :mod:`.blazepose_models`);
+2. the 33 landmarks become SMPL-order 2D keypoints with BlazePose's visibility as confidence, and its
+   world landmarks the matching 3D joints (:func:`multithumbs.perception.joints.blazepose33_to_smpl24`);
+3. :func:`multithumbs.perception.body_fit.fit_bodies` fits the body model to both in the scene's
+   intrinsics, batched over the shot's people and frames.
+
+Masks come from BlazePose's segmentation. Appearance is described afterwards from the pixels, as for every
+source (:mod:`.appearance`). Frames where a person was not followed stay invalid.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from multithumbs.appearance import DESCRIPTOR_SIZE
+from multithumbs.perception.body_fit import BodyFitConfig, fit_bodies
+from multithumbs.perception.joints import blazepose33_to_smpl24
+from multithumbs.perception.pose_tracking import ShotPoses, TrackerConfig, track_shot
+from multithumbs.types import PersonTracks, Shots
+
+BACKEND_NAME = "blazepose"
+
+
+@dataclass(frozen=True)
+class BlazePoseConfig:
+    """The CPU backend's settings."""
+
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    """How people are found and followed within a shot."""
+    fit: BodyFitConfig = field(default_factory=lambda: BodyFitConfig(w_joints3d=25.0))
+    """How bodies are fitted to the landmarks. BlazePose's world landmarks are off by ~10 cm per joint
+    after Procrustes on the suite's people (``benchmarks/cpu_perception.py``), so the 3D term is trusted
+    to σ = 20 cm (weight 1/σ²), not the 5 cm of :class:`BodyFitConfig`'s default."""
+    num_threads: int = 2
+    """Threads of each tflite interpreter."""
+
+
+@dataclass(frozen=True)
+class StageSeconds:
+    """Where the backend's time went, summed over shots (wall seconds)."""
+
+    landmarks: float
+    """Detector and landmark models with their pre- and post-processing (tracking included)."""
+    fitting: float
+    """Body fitting."""
+    detector_calls: int
+    """Detector invocations."""
+    landmark_calls: int
+    """Landmark model invocations."""
+    frames: int
+    """Frames processed."""
+
+
+def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.ndarray, image_size: tuple[int, int],
+                    body=None, config: BodyFitConfig | None = None) -> PersonTracks:
+    """One shot's :class:`PersonTracks` from the people BlazePose followed (module docstring, steps 2–3)."""
+    p, t = poses.valid.shape
+    h, w = image_size
+    visibility = poses.image[..., 3:4]
+    keypoints = blazepose33_to_smpl24(np.concatenate([poses.image[..., :2], visibility], axis=-1))
+    joints3d = blazepose33_to_smpl24(np.concatenate([poses.world, visibility], axis=-1))
+    keypoints = np.where(poses.valid[..., None, None], keypoints, 0.0)
+    joints3d = np.where(poses.valid[..., None, None], joints3d, 0.0)
+    fitted = fit_bodies(keypoints, joints3d, poses.valid, K, body, config or BlazePoseConfig().fit)
+    return PersonTracks(
+        shot_index=shot_index, start_frame=start_frame, track_ids=poses.track_ids,
+        global_orient=fitted.global_orient, body_pose=fitted.body_pose, betas=fitted.betas, transl=fitted.transl,
+        keypoints2d=keypoints, masks=poses.masks if p else np.zeros((0, t, h, (w + 7) // 8), np.uint8),
+        image_size=(h, w), K=np.asarray(K, np.float64), appearance=np.zeros((p, t, DESCRIPTOR_SIZE)),
+        appearance_valid=np.zeros((p, t), bool), valid=poses.valid)
+
+
+def blazepose_tracks(frames: Iterable[np.ndarray], shots: Shots, K: np.ndarray, body=None,
+                     config: BlazePoseConfig = BlazePoseConfig(), model=None, progress=None
+                     ) -> tuple[list[PersonTracks], StageSeconds]:
+    """Per-shot :class:`PersonTracks` of a video's frames (module docstring) and the time each stage took.
+
+    Args:
+        frames: the video's ``(H, W, 3)`` uint8 RGB frames in order (an iterator is read once).
+        shots: its shots; tracking restarts at every cut, so ids never span one.
+        K: ``(3, 3)`` intrinsics the bodies are fitted in.
+        body: the body model (default :func:`multithumbs.body.model.load_body_model`).
+        model: a loaded :class:`~multithumbs.perception.blazepose_models.BlazePose` (default: loaded here).
+        progress: optional ``callable(shot_index, done_frames, shot_frames)``.
+    """
+    if model is None:
+        from multithumbs.perception.blazepose_models import BlazePose
+
+        model = BlazePose(num_threads=config.num_threads)
+    if body is None:
+        from multithumbs.body.model import load_body_model
+
+        body = load_body_model()
+    iterator = iter(frames)
+    out: list[PersonTracks] = []
+    seconds = {"landmarks": 0.0, "fitting": 0.0}
+    calls = {"detector": 0, "landmark": 0}
+    image_size = None
+    for k, (a, b) in enumerate(shots.ranges):
+        shot_frames = []
+        for _ in range(b - a):
+            frame = next(iterator, None)
+            if frame is None:
+                break
+            shot_frames.append(frame)
+            image_size = frame.shape[:2]
+        report = (lambda done, _total, k=k, n=b - a: progress(k, done, n)) if progress else None
+        start = time.perf_counter()
+        poses = track_shot(shot_frames, model, config.tracker, progress=report)
+        seconds["landmarks"] += time.perf_counter() - start
+        calls["detector"] += poses.detector_calls
+        calls["landmark"] += poses.landmark_calls
+        start = time.perf_counter()
+        out.append(poses_to_tracks(poses, k, a, K, image_size, body, config.fit))
+        seconds["fitting"] += time.perf_counter() - start
+    return out, StageSeconds(seconds["landmarks"], seconds["fitting"], calls["detector"], calls["landmark"],
+                             shots.num_frames)
+
+
+def run_blazepose(video: str | Path, shots: Shots, K: np.ndarray, body=None,
+                  config: BlazePoseConfig = BlazePoseConfig(), progress=None) -> list[PersonTracks]:
+    """:func:`blazepose_tracks` on a video file."""
+    from multithumbs.perception.blazepose_models import BlazePose, check_models
+    from multithumbs.video import iter_frames
+
+    check_models()
+    tracks, _ = blazepose_tracks(iter_frames(video), shots, K, body, config,
+                                 BlazePose(num_threads=config.num_threads), progress)
+    return tracks
+
+
+
+__all__ = ["BACKEND_NAME", "BlazePoseConfig", "StageSeconds", "poses_to_tracks", "blazepose_tracks",
+           "run_blazepose"]
