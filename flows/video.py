@@ -113,7 +113,11 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
                             metrics, {"backends": backends, "timings": timings, "variant": variant,
                                       "fallbacks": _fallbacks(spaces), "body_model": body_path or "procedural"},
                             body_path)
-    return {"metrics": metrics, "files": files, "num_shots": len(tracks), "backends": backends, "timings": timings}
+    from multithumbs.viz.report import people_by_shot
+    from tasks.artifacts import load
+
+    return {"metrics": metrics, "files": files, "num_shots": len(tracks), "backends": backends, "timings": timings,
+            "people": people_by_shot(load(method_refs["result"]))}
 
 
 def _backends(store_url, shots_ref, trajectories, spaces, perception: str) -> dict[str, str]:

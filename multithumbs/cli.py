@@ -174,6 +174,14 @@ def run_cmd(
         if key in METRIC_KEYS:
             table.add_row(key, format_value(value, ".3f"), METRIC_UNITS.get(key, ""))
     output_console().print(table)
+    people = summary.get("people", [])
+    if people:
+        console.print("people (global id: shots): " + "; ".join(
+            f"{p['id']}: {', '.join(map(str, p['shots']))}" for p in people), highlight=False, soft_wrap=True)
+    else:
+        console.print(f"no people found in any of the {summary['num_shots']} shots of {video.name} (perception: "
+                      f"{summary['backends'].get('perception', perception)}); the result holds the cameras only",
+                      highlight=False)
     # Paths relative to the output folder, subfolders kept (smpl/..., bvh/...): what a user opens next.
     console.print(f"outputs in {out_dir}:")
     for line in file_lines(summary["files"], out_dir):

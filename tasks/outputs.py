@@ -66,7 +66,9 @@ def write_outputs(out_dir: str, name: str, variant: str, video_path: str, method
     files = {"result": str(save_result(out / "result.npz", result, metadata={
         "variant": variant, "name": name, "artifact": method_refs["result"].key, "backends": run_info["backends"]}))}
     if metrics is not None:
-        (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True))
+        # Which backend produced each stage travels with the figures it produced.
+        (out / "metrics.json").write_text(json.dumps({**metrics, "backends": run_info["backends"]}, indent=2,
+                                                     sort_keys=True))
         files["metrics"] = str(out / "metrics.json")
     written = write_video_outputs(out, result, video_path, truth=None if truth is None else load(truth),
                                   metrics=metrics, run_info=run_info,

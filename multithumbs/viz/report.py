@@ -1,4 +1,5 @@
-"""The per-video report as markdown: summary, metrics, pictures, files, backends and fallbacks, timings.
+"""The per-video report as markdown: summary, people and their shots, metrics, pictures, files, backends and
+fallbacks, timings.
 
 ``run_info`` (all keys optional; what the flow or the CLI knows about the run):
 
@@ -57,6 +58,20 @@ def _table(header: tuple[str, str], rows: list[tuple[str, str]]) -> list[str]:
     return [f"| {header[0]} | {header[1]} |", "| --- | ---: |", *(f"| {a} | {b} |" for a, b in rows)]
 
 
+def people_by_shot(result: WorldResult) -> list[dict[str, Any]]:
+    """Each person of ``result`` with the shots (numbered from 0) and frames they are seen in, by id."""
+    starts = np.concatenate([[0], np.asarray(result.cut_frames, int)])
+    out = []
+    for index in np.argsort(result.person_ids, kind="stable"):
+        frames = np.flatnonzero(result.valid[index])
+        if frames.size == 0:
+            continue
+        shots = sorted({int(s) for s in np.searchsorted(starts, frames, side="right") - 1})
+        out.append({"id": int(result.person_ids[index]), "shots": shots, "frames": int(frames.size),
+                    "first": int(frames[0]), "last": int(frames[-1])})
+    return out
+
+
 def render_report_markdown(result: WorldResult, files: Mapping[str, str | Path] | None = None,
                            metrics: Mapping[str, Any] | None = None, run_info: Mapping[str, Any] | None = None,
                            title: str = "Multi-THuMBS reconstruction", video: str | None = None,
@@ -93,6 +108,15 @@ def render_report_markdown(result: WorldResult, files: Mapping[str, str | Path] 
                ("people (global ids)", ", ".join(str(int(i)) for i in result.person_ids) or "none"),
                ("valid person-frames", str(int(result.valid.sum()))), ("ground truth", "yes" if has_truth else "no")]
     lines += ["## Summary", "", *_table(("", ""), summary), ""]
+    lines += ["## People", ""]
+    people = people_by_shot(result)
+    if people:
+        lines += _table(("person (global id)", "shots", "frames", "first", "last"),
+                        [(str(p["id"]), ", ".join(map(str, p["shots"])), str(p["frames"]), str(p["first"]),
+                          str(p["last"])) for p in people])
+    else:
+        lines.append("Nobody was found in any shot: the result holds the cameras only.")
+    lines.append("")
 
     lines += ["## Metrics", ""]
     flat = flatten_metrics(metrics) if metrics else {}
