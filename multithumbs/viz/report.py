@@ -54,8 +54,10 @@ def flatten_metrics(metrics: Mapping[str, Any], prefix: str = "") -> dict[str, A
     return out
 
 
-def _table(header: tuple[str, str], rows: list[tuple[str, str]]) -> list[str]:
-    return [f"| {header[0]} | {header[1]} |", "| --- | ---: |", *(f"| {a} | {b} |" for a, b in rows)]
+def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> list[str]:
+    """A markdown table, the first column left-aligned and the others right-aligned."""
+    return ["| " + " | ".join(header) + " |", "| --- |" + " ---: |" * (len(header) - 1),
+            *("| " + " | ".join(row) + " |" for row in rows)]
 
 
 def people_by_shot(result: WorldResult) -> list[dict[str, Any]]:
