@@ -51,12 +51,16 @@ class SceneScores:
         metrics: variant -> metric name -> value (plus ``scored_frames``).
         seconds: variant -> wall time of its own stages (shared stages counted where first run).
         labels: variant -> :data:`LABEL_KEYS` name -> value (the single sequence's entry).
+        backends: input stage -> what produced it for this scene.
+        stage_seconds: input stage -> wall seconds (pixel inputs; empty when simulated).
     """
 
     scene: str
     metrics: dict[str, dict[str, float]]
     seconds: dict[str, float]
     labels: dict[str, dict[str, Any]] = field(default_factory=dict)
+    backends: dict[str, str] = field(default_factory=dict)
+    stage_seconds: dict[str, float] = field(default_factory=dict)
 
 
 def _alignment_key(config: MethodConfig) -> tuple:
@@ -67,6 +71,59 @@ PERCEPTION_ROUTES = ("direct", "phalp")
 """How the simulated perception reaches the method: as tracks (``direct``), or written the way 4DHumans/PHALP
 writes its results and read back as ``multithumbs run --perception phalp:`` reads them (``phalp``: 1-based
 frame names, ghosts, confirmation, HMR2-camera ``2d_joints`` reprojected, appearance from the pixels)."""
+
+
+INPUT_SOURCES = ("simulated", "pixels")
+"""Where the method's inputs come from: ``simulated`` (perception, shared spaces and camera tracking made
+from the truth, cuts exact) or ``pixels`` (nothing simulated: cuts by scenedetect on the encoded video,
+people by the CPU perception backend, camera trajectories and shared spaces by pycolmap, all from the
+frames a user's decoder gives)."""
+PIXEL_BACKENDS = {"shots": "scenedetect:adaptive on the encoded video", "perception": "blazepose (CPU)",
+                  "camera_tracking": "pycolmap", "shared_space": "pycolmap"}
+
+
+def pixel_inputs(video, body, seconds: dict[str, float] | None = None):
+    """The method's inputs of a rendered scene with nothing simulated (:data:`INPUT_SOURCES`).
+
+    The frames are encoded as MPEG-4 and decoded again, as a user's video would be. Intrinsics are the
+    true ones. Returns ``(shots, tracks, trajectories, spaces, backends)``: ``backends`` names what made
+    each stage (the trajectories' and spaces' own sources, fallbacks included); ``seconds`` (when given)
+    receives each stage's wall time.
+    """
+    import tempfile
+    import time
+    from pathlib import Path
+
+    from multithumbs.perception.appearance import fill_appearance
+    from multithumbs.perception.blazepose_backend import blazepose_tracks
+    from multithumbs.scene.geometry import scene_geometry
+    from multithumbs.scene.shots import detect_shots
+    from multithumbs.synth.files import write_video
+    from multithumbs.video import read_frames
+
+    seconds = {} if seconds is None else seconds
+    K = video.truth.world.K[0]
+    with tempfile.TemporaryDirectory(prefix="mt_pixels_") as tmp:
+        path = write_video(Path(tmp) / "video.mp4", video.frames, video.truth.world.fps)
+        start = time.perf_counter()
+        shots = detect_shots(path)
+        seconds["shots"] = time.perf_counter() - start
+        frames = read_frames(path)
+    tracks, split = blazepose_tracks(iter(frames), shots, K, body)
+    seconds["perception_landmarks"], seconds["perception_fitting"] = split.landmarks, split.fitting
+    start = time.perf_counter()
+    tracks = fill_appearance(tracks, frames)
+    seconds["appearance"] = time.perf_counter() - start
+    masks = np.concatenate([tr.people_mask() for tr in tracks])
+    geometry = scene_geometry(frames, shots, K, masks)
+    seconds["camera_tracking"] = geometry.seconds.get("trajectories", math.nan)
+    seconds["shared_space"] = geometry.seconds.get("spaces", math.nan)
+    backends = {"shots": f"{shots.source} ({'exact' if np.array_equal(shots.cut_frames, video.truth.world.cut_frames) else 'cuts differ'})",
+                "perception": PIXEL_BACKENDS["perception"],
+                "camera_tracking": ", ".join(sorted({t.source for t in geometry.trajectories})),
+                "shared_space": ", ".join(sorted({s.source + (f" -> {s.fallback}" if s.fallback else "")
+                                                  for s in geometry.spaces})) or "none (one shot)"}
+    return shots, tracks, list(geometry.trajectories), list(geometry.spaces), backends
 
 
 def through_phalp_file(tracks: Sequence, video, body) -> list:
@@ -96,9 +153,11 @@ def through_phalp_file(tracks: Sequence, video, body) -> list:
 
 
 def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: MethodConfig = MethodConfig(),
-                      seed: int = 0, seconds: dict[str, float] | None = None, perception: str = "direct"):
+                      seed: int = 0, seconds: dict[str, float] | None = None, perception: str = "direct",
+                      inputs: str = "simulated", stages: dict[str, Any] | None = None):
     """Synthesise one scene and run the variants on shared stages (module docstring); ``perception`` is
-    one of :data:`PERCEPTION_ROUTES`.
+    one of :data:`PERCEPTION_ROUTES` (simulated inputs only), ``inputs`` one of :data:`INPUT_SOURCES`;
+    ``stages`` (when given) receives ``"backends"`` and ``"seconds"`` of the input stages.
 
     Returns:
         the scene's :class:`~multithumbs.types.GroundTruth` and variant -> its
@@ -113,14 +172,24 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
 
     fix_threads()  # synthesis and simulated perception round by thread count too, not only the method
     video = synthesize(config, body)
-    shots = video.truth.world.shots()
-    tracks = simulate_perception(video, body, seed=seed)
-    if perception == "phalp":
-        tracks = through_phalp_file(tracks, video, body)
-    elif perception != "direct":
-        raise InputError(f"perception route {perception!r}: expected one of {', '.join(PERCEPTION_ROUTES)}")
-    spaces = [simulate_shared_space(video, c, seed=seed) for c in range(len(shots.cut_frames))]
-    trajectories = [simulate_camera_trajectory(video, k, seed=seed) for k in range(shots.num_shots)]
+    if inputs == "pixels":
+        stage_seconds: dict[str, float] = {}
+        shots, tracks, trajectories, spaces, backends = pixel_inputs(video, body, stage_seconds)
+        if stages is not None:
+            stages.update(backends=backends, seconds=stage_seconds)
+    elif inputs != "simulated":
+        raise InputError(f"inputs {inputs!r}: expected one of {', '.join(INPUT_SOURCES)}")
+    else:
+        shots = video.truth.world.shots()
+        tracks = simulate_perception(video, body, seed=seed)
+        if perception == "phalp":
+            tracks = through_phalp_file(tracks, video, body)
+        elif perception != "direct":
+            raise InputError(f"perception route {perception!r}: expected one of {', '.join(PERCEPTION_ROUTES)}")
+        spaces = [simulate_shared_space(video, c, seed=seed) for c in range(len(shots.cut_frames))]
+        trajectories = [simulate_camera_trajectory(video, k, seed=seed) for k in range(shots.num_shots)]
+        if stages is not None:
+            stages.update(backends=dict(BACKENDS), seconds={})
     tracks = prepare_inputs(shots, tracks, trajectories, spaces)
     aligned_cache: dict[tuple, list] = {}
     placement_cache: dict[tuple, Placement] = {}
@@ -152,18 +221,19 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
 
 
 def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: MethodConfig = MethodConfig(),
-              seed: int = 0, perception: str = "direct") -> SceneScores:
+              seed: int = 0, perception: str = "direct", inputs: str = "simulated") -> SceneScores:
     """Synthesise one scene, run the variants on shared stages, score them."""
     from multithumbs.body.model import load_body_model
     from multithumbs.metrics.evaluate import evaluate
 
     body = load_body_model()
     seconds: dict[str, float] = {}
-    truth, results = run_scene_results(config, variants, body, base, seed, seconds, perception)
+    stages: dict[str, Any] = {}
+    truth, results = run_scene_results(config, variants, body, base, seed, seconds, perception, inputs, stages)
     metrics, labels = {}, {}
     for name, result in results.items():
         metrics[name], labels[name] = scene_metrics(evaluate(result, truth, body))
-    return SceneScores(config.name, metrics, seconds, labels)
+    return SceneScores(config.name, metrics, seconds, labels, stages.get("backends", {}), stages.get("seconds", {}))
 
 
 def scene_metrics(report: dict) -> tuple[dict[str, float], dict[str, Any]]:
@@ -188,25 +258,27 @@ def _init_worker(threads: int) -> None:
 def run_suite(configs: Sequence[SceneConfig], variants: Sequence[str] = VARIANTS, workers: int | None = None,
               base: MethodConfig = MethodConfig(),
               progress: Callable[[SceneScores, int, int], None] | None = None,
-              perception: str = "direct") -> list[SceneScores]:
+              perception: str = "direct", inputs: str = "simulated") -> list[SceneScores]:
     """Run every scene (in ``workers`` processes; default: one per core) and return their scores in order;
-    ``perception`` as :func:`run_scene_results`."""
+    ``perception`` and ``inputs`` as :func:`run_scene_results`."""
     for v in variants:
         variant_config(v)  # unknown names fail before any work
+    if inputs not in INPUT_SOURCES:
+        raise InputError(f"inputs {inputs!r}: expected one of {', '.join(INPUT_SOURCES)}")
     if perception not in PERCEPTION_ROUTES:
         raise InputError(f"--perception-file {perception!r}: expected one of {', '.join(PERCEPTION_ROUTES)}")
     workers = workers or max(1, min(len(configs), os.cpu_count() or 1))
     if workers == 1:
         out = []
         for i, c in enumerate(configs):
-            out.append(run_scene(c, variants, base, perception=perception))
+            out.append(run_scene(c, variants, base, perception=perception, inputs=inputs))
             if progress:
                 progress(out[-1], i + 1, len(configs))
         return out
     results: dict[str, SceneScores] = {}
     # One torch thread per worker: the optimisations are small-op bound, processes scale better.
     with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=(1,)) as pool:
-        futures = {pool.submit(run_scene, c, variants, base, 0, perception): c.name for c in configs}
+        futures = {pool.submit(run_scene, c, variants, base, 0, perception, inputs): c.name for c in configs}
         for done, future in enumerate(as_completed(futures), 1):
             scores = future.result()
             results[scores.scene] = scores

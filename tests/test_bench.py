@@ -1,10 +1,12 @@
 import numpy as np
+import pytest
 
 from multithumbs.bench import run_scene
 from multithumbs.body.model import load_body_model
 from multithumbs.method.align import AlignConfig
 from multithumbs.method.post import PostConfig
 from multithumbs.metrics.evaluate import evaluate
+from multithumbs.perception.blazepose_models import missing_models
 from multithumbs.pipeline import MethodConfig, run_video, variant_config
 from multithumbs.synth.perception import simulate_perception
 from multithumbs.synth.scene import SceneConfig, synthesize
@@ -57,3 +59,26 @@ def test_perception_through_a_phalp_file_is_what_a_4dhumans_user_gets():
         assert after.appearance_valid[both].mean() > 0.5
     with pytest.raises(InputError, match="perception route"):
         run_scene(config, ("full",), FAST, perception="hmr2")
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(bool(missing_models()), reason="BlazePose models not installed (scripts/setup.sh)")
+def test_nothing_simulated_inputs_name_their_backends():
+    from multithumbs.bench import PIXEL_BACKENDS
+
+    config = SceneConfig(num_people=2, num_shots=2, num_frames=40, seed=5, image_size=(360, 640), cut_angle_deg=30)
+    scores = run_scene(config, ["full"], inputs="pixels")
+    assert set(scores.backends) == set(PIXEL_BACKENDS)
+    assert scores.backends["perception"] == PIXEL_BACKENDS["perception"]
+    assert scores.backends["shots"].startswith("scenedetect")
+    assert {"shots", "perception_landmarks", "perception_fitting", "camera_tracking", "shared_space"} <= set(
+        scores.stage_seconds)
+    assert np.isfinite(scores.metrics["full"]["mpjpe"]) or scores.metrics["full"]["coverage"] == 0
+
+
+def test_unknown_input_source_is_refused():
+    from multithumbs.bench import run_suite
+    from multithumbs.errors import InputError
+
+    with pytest.raises(InputError, match="inputs 'rendered'"):
+        run_suite([SceneConfig(num_frames=8)], ["full"], inputs="rendered")

@@ -114,6 +114,9 @@ def register(app: typer.Typer) -> None:
         perception_file: str = typer.Option("direct", "--perception-file",
                                             help="direct, or phalp: the simulated perception through a "
                                                  "4DHumans/PHALP results file, as a real user's."),
+        from_pixels: bool = typer.Option(False, "--from-pixels",
+                                         help="Nothing simulated: cuts, people, cameras and shared spaces "
+                                              "from the rendered video; the simulated run is shown beside it."),
     ) -> None:
         """Run a synthetic suite with the full method, each ablation and each baseline; print the metrics."""
         import time
@@ -126,13 +129,24 @@ def register(app: typer.Typer) -> None:
         configs = [suite_scene(suite_name, n) for n in scenes.split(",")] if scenes else list(suite(suite_name))
         if workers is not None and workers < 1:
             raise InputError(f"--workers: need at least 1, got {workers}")
+        if from_pixels and perception_file != "direct":
+            raise InputError("--from-pixels: the people come from the pixels; --perception-file applies to "
+                             "simulated perception only")
         start = time.perf_counter()
         with _progress() as bar:
-            task = bar.add_task(f"suite {suite_name}", total=len(configs))
+            task = bar.add_task(f"suite {suite_name}" + (" from pixels" if from_pixels else ""), total=len(configs))
             results = run_suite(configs, names, workers, progress=lambda s, done, total: bar.update(task, completed=done),
-                                perception=perception_file)
+                                perception=perception_file, inputs="pixels" if from_pixels else "simulated")
         summary = summarize(results, names)
         elapsed = time.perf_counter() - start
+        if from_pixels:
+            with _progress() as bar:
+                task = bar.add_task(f"suite {suite_name} simulated, for comparison", total=len(configs))
+                simulated = run_suite(configs, names, workers,
+                                      progress=lambda s, done, total: bar.update(task, completed=done))
+            _print_pixels_bench(suite_name, configs, names, results, summary, summarize(simulated, names), elapsed,
+                                as_json)
+            return
         backends = dict(BACKENDS)
         if perception_file == "phalp":
             backends["perception"] = "simulated, through a 4DHumans/PHALP results file"
@@ -153,3 +167,40 @@ def register(app: typer.Typer) -> None:
                                      caption="backends: " + "; ".join(f"{k} {v}" for k, v in backends.items()))
         for table in tables:
             out.print(table)
+
+
+def _print_pixels_bench(suite_name, configs, names, results, summary, simulated, elapsed, as_json) -> None:
+    """``bench --from-pixels``: the nothing-simulated figures, scene by scene beside the simulated ones, and
+    which backend produced each input stage of each scene, with its seconds."""
+    from multithumbs.bench import METRIC_KEYS, PIXEL_BACKENDS
+    from multithumbs.cli_format import output_console, split_metric_tables
+    from multithumbs.metrics.evaluate import METRIC_UNITS
+
+    meta = {"suite": suite_name, "scenes": [c.name for c in configs], "seconds": elapsed,
+            "backends": PIXEL_BACKENDS, "backends_per_scene": {r.scene: r.backends for r in results},
+            "stage_seconds": {r.scene: r.stage_seconds for r in results}}
+    if as_json:
+        print(json.dumps(_jsonable({"pixels": summary, "simulated": simulated, "_meta": meta}), indent=1,
+                         sort_keys=True))
+        return
+    out = output_console()
+    means = {v: {k: summary[v][k]["mean"] for k in METRIC_KEYS} for v in names}
+    for table in split_metric_tables(out, f"suite {suite_name} from pixels: {len(configs)} scenes, {elapsed:.0f} s, "
+                                     f"means", "variant", means, METRIC_KEYS, METRIC_UNITS,
+                                     caption="backends: " + "; ".join(f"{k} {v}" for k, v in PIXEL_BACKENDS.items())):
+        out.print(table)
+    shown = [v for v in ("full", "no_align", "independent_shots") if v in names] or list(names)[:1]
+    table = Table(title="W-MPJPE (mm) and IDs per scene: pixels / simulated", box=box.SIMPLE_HEAD)
+    table.add_column("scene", no_wrap=True)
+    for v in shown:
+        table.add_column(v, justify="right")
+    for r in results:
+        table.add_row(r.scene, *(f"{summary[v]['w_mpjpe']['per_scene'][r.scene]:.0f}/"
+                                 f"{simulated[v]['w_mpjpe']['per_scene'][r.scene]:.0f} "
+                                 f"{summary[v]['ids']['per_scene'][r.scene]:.0f}/"
+                                 f"{simulated[v]['ids']['per_scene'][r.scene]:.0f}" for v in shown))
+    out.print(table)
+    stages = sorted({k for r in results for k in r.stage_seconds})
+    totals = {k: sum(r.stage_seconds.get(k, 0.0) for r in results) for k in stages}
+    out.print("input stages, seconds over the suite: " + ", ".join(f"{k} {v:.0f}" for k, v in totals.items()),
+              highlight=False, soft_wrap=True)
