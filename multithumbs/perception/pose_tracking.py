@@ -59,6 +59,8 @@ class TrackerConfig:
     """Share of the smaller of two segmentations inside the other that also means one person."""
     min_extent: float = 0.3
     """Smallest long side of a pose's landmark box, as a share of its square's side, for it to count."""
+    min_run: int = 3
+    """Frames of a track outside a run of this many consecutive ones are dropped."""
     min_frames: int = 6
     """Tracks seen in fewer frames (a quarter second at 24 fps) are dropped: passing misreadings."""
     mask_probability: float = 0.5
@@ -271,8 +273,25 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
                     b.last, b.missed = b.before or b.last, 1
         if progress:
             progress(t + 1, None)
+    for tr in tracks:
+        _drop_short_runs(tr, config.min_run)
     return _assemble([tr for tr in tracks if len(tr.frames) >= config.min_frames], t + 1, image_size, config,
                      detector_calls, landmark_calls)
+
+
+def _drop_short_runs(track: _Track, min_run: int) -> None:
+    """Forget a track's frames that are not part of ``min_run`` consecutive ones: an isolated reading has
+    nothing to smooth its depth against (fitting judges depth from body size, frame by frame)."""
+    frames = sorted(track.frames)
+    run: list[int] = []
+    for t in frames + [None]:
+        if run and (t is None or t != run[-1] + 1):
+            if len(run) < min_run:
+                for old in run:
+                    del track.frames[old]
+            run = []
+        if t is not None:
+            run.append(t)
 
 
 def _assemble(tracks: list[_Track], num_frames: int, image_size, config: TrackerConfig, detector_calls: int,
