@@ -1,9 +1,12 @@
 """ViTPose and SAM adapters on tiny random models loaded the real way (local files only, HF_HUB_OFFLINE=1)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from multithumbs.errors import InputError
+from multithumbs.perception.blazepose_models import missing_models
 from multithumbs.perception.joints import COCO17_TO_SMPL24
 from multithumbs.perception.phalp import load_phalp
 from multithumbs.perception.transformers_backends import load_sam, load_vitpose, refine_tracks
@@ -72,3 +75,24 @@ def test_refine_tracks_needs_the_whole_video(tiny_models, scene, results_file):
     imported = load_phalp(results_file, shots, video.truth.world.image_size, trust=True)
     with pytest.raises(InputError, match="ends at frame"):
         refine_tracks(imported.tracks, imported.boxes, video.frames[:10], keypoints=load_vitpose(tiny_models["vitpose"]))
+
+
+@pytest.mark.skipif(bool(missing_models()), reason="BlazePose models not installed (scripts/setup.sh)")
+def test_blazepose_composes_with_the_refiners(tiny_models, tmp_path, body):
+    """``blazepose+vitpose+sam``: the refiners prompt with the boxes of BlazePose's masks."""
+    import cv2
+
+    from multithumbs.perception import load_perception
+    from multithumbs.synth.files import write_video
+    from multithumbs.types import Shots
+
+    frame = cv2.cvtColor(cv2.imread(str(Path(__file__).parent / "fixtures" / "s09_frame63.png")), cv2.COLOR_BGR2RGB)
+    path = write_video(tmp_path / "still.mp4", np.stack([frame] * 8), 24.0)
+    shots = Shots(np.array([], np.int64), 24.0, 8, np.zeros(8), "given")
+    plain = load_perception("blazepose", path, shots, body=body, appearance=False)
+    spec = f"blazepose+vitpose:{tiny_models['vitpose']}+sam:{tiny_models['sam']}"
+    refined = load_perception(spec, path, shots, body=body, appearance=False)
+    assert plain[0].num_people >= 1 and refined[0].num_people == plain[0].num_people
+    seen = plain[0].valid
+    assert not np.array_equal(refined[0].keypoints2d[seen], plain[0].keypoints2d[seen])  # ViTPose's now
+    np.testing.assert_array_equal(refined[0].transl, plain[0].transl)  # the bodies stay BlazePose's
