@@ -37,7 +37,7 @@ def test_megamind_dialogue_has_a_body_on_its_characters_in_every_shot(opencv_sam
     assert len(per_shot) == 4 and all(per_shot), per_shot
     report = (out / "report.md").read_text()
     assert "## People" in report and "| perception | blazepose |" in report
-    assert "people (global id: shots):" in done.stdout
+    assert "people (global id: shots):" in done.stderr  # notes go to stderr, tables to stdout
     assert json.loads((out / "outputs.json").read_text())
 
 
@@ -52,7 +52,7 @@ def test_vtest_pedestrians_are_tracked_without_a_cut(opencv_samples, tmp_path):
 def test_tree_without_people_says_so_in_one_line_and_writes_a_whole_result(opencv_samples, tmp_path):
     out = tmp_path / "tree"
     done = run(opencv_samples / "tree.avi", out, tmp_path)
-    notices = [line for line in done.stdout.splitlines() if line.startswith("no people found")]
+    notices = [line for line in done.stderr.splitlines() if line.startswith("no people found")]
     assert len(notices) == 1 and "tree.avi" in notices[0]
     assert shots_with_people(out) == [set()]
     listed = json.loads((out / "outputs.json").read_text())
