@@ -25,6 +25,7 @@ all, and are carried from their landmarks once found. Ids are local to the shot 
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Iterable
 
@@ -102,7 +103,8 @@ class ShotPoses:
 @dataclass
 class _Track:
     track_id: int
-    frames: dict = field(default_factory=dict)  # t -> Landmarks
+    frames: dict = field(default_factory=dict)  # t -> Landmarks (segmentation dropped once the frame is settled)
+    masks: dict = field(default_factory=dict)  # t -> (H, ceil(W/8)) packed mask
     last: bp.Landmarks | None = None
     before: bp.Landmarks | None = None  # the landmarks before ``last``
     missed: int = 0
@@ -271,6 +273,7 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
                     # b followed a onto a's person (its own was hidden): it is lost, last seen where it was.
                     b.frames.pop(t, None)
                     b.last, b.missed = b.before or b.last, 1
+        _settle_frame(tracks, t, config)
         if progress:
             progress(t + 1, None)
     for tr in tracks:
@@ -294,6 +297,31 @@ def _drop_short_runs(track: _Track, min_run: int) -> None:
             run.append(t)
 
 
+def _settle_frame(tracks: list[_Track], t: int, config: TrackerConfig) -> None:
+    """Frame ``t``'s masks, now that its people are known: each person's segmentation restricted to the
+    square it came from, a pixel going to the person most sure of it. The frame's landmarks are then kept
+    without their full-frame segmentation (only the last ones keep theirs), so memory grows with the
+    shot's length by masks, not by float images."""
+    present = [tr for tr in tracks if t in tr.frames]
+    if not present:
+        return
+    h, w = present[0].frames[t].segmentation.shape
+    probability = np.zeros((len(present), h, w), np.float32)
+    for k, tr in enumerate(present):
+        found = tr.frames[t]
+        region = np.zeros((h, w), np.uint8)
+        cv2.fillConvexPoly(region, np.round(found.roi.corners()).astype(np.int32), 1)
+        probability[k] = found.segmentation * region
+    owner = probability.argmax(0)
+    confident = probability.max(0) >= config.mask_probability
+    for k, tr in enumerate(present):
+        tr.masks[t] = np.packbits(confident & (owner == k), axis=1)
+        tr.frames[t] = dataclasses.replace(tr.frames[t], segmentation=_NO_SEGMENTATION)
+
+
+_NO_SEGMENTATION = np.zeros((0, 0), np.float32)
+
+
 def _assemble(tracks: list[_Track], num_frames: int, image_size, config: TrackerConfig, detector_calls: int,
               landmark_calls: int) -> ShotPoses:
     h, w = image_size if image_size is not None else (0, 0)
@@ -303,23 +331,13 @@ def _assemble(tracks: list[_Track], num_frames: int, image_size, config: Tracker
     boxes = np.zeros((p, num_frames, 4))
     valid = np.zeros((p, num_frames), bool)
     masks = np.zeros((p, num_frames, h, (w + 7) // 8), np.uint8)
-    for t in range(num_frames):
-        present = [(i, tr.frames[t]) for i, tr in enumerate(tracks) if t in tr.frames]
-        if not present:
-            continue
-        probability = np.zeros((len(present), h, w), np.float32)
-        for k, (i, found) in enumerate(present):
+    for i, tr in enumerate(tracks):
+        for t, found in tr.frames.items():
             image[i, t] = found.image[: bp.NUM_POSE_LANDMARKS]
             world[i, t] = found.world
             boxes[i, t] = landmark_box(found)
             valid[i, t] = True
-            region = np.zeros((h, w), np.uint8)
-            cv2.fillConvexPoly(region, np.round(found.roi.corners()).astype(np.int32), 1)
-            probability[k] = found.segmentation * region
-        owner = probability.argmax(0)
-        confident = probability.max(0) >= config.mask_probability
-        for k, (i, _) in enumerate(present):
-            masks[i, t] = np.packbits(confident & (owner == k), axis=1)
+            masks[i, t] = tr.masks[t]
     ids = np.array([tr.track_id for tr in tracks], dtype=np.int64)
     return ShotPoses(ids, image, world, boxes, masks, valid, detector_calls, landmark_calls)
 
