@@ -200,7 +200,8 @@ def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool
                                progress=(lambda shot, done, total: progress(f"blazepose shot {shot + 1}/"
                                                                             f"{shots.num_shots}", done, total))
                                if progress else None)
-        boxes = [people_boxes(tr) for tr in tracks]
+        # The refiners prompt with boxes; only they need them, and they cost a pass over every mask.
+        boxes = [people_boxes(tr) for tr in tracks] if len(terms) > 1 else []
     elif source.backend == "oracle":
         from multithumbs.body.model import load_body_model
         from multithumbs.io import load_ground_truth
@@ -253,14 +254,15 @@ def load_perception(spec: str, video_path: str | Path, shots: Shots, trust: bool
 
 
 def people_boxes(tracks: PersonTracks) -> np.ndarray:
-    """``(P, T, 4)`` x0, y0, x1, y1 of each person's mask (zeros where empty): the boxes refiners prompt with."""
-    masks = np.unpackbits(tracks.masks, axis=-1)[..., : tracks.image_size[1]].astype(bool)
-    rows, cols = masks.any(-1), masks.any(-2)
+    """``(P, T, 4)`` x0, y0, x1, y1 of each person's mask where valid (zeros elsewhere or where empty): the
+    boxes refiners prompt with."""
     out = np.zeros((*tracks.valid.shape, 4))
-    for index in np.ndindex(*tracks.valid.shape):
-        r, c = np.flatnonzero(rows[index]), np.flatnonzero(cols[index])
+    # One mask unpacked at a time: all of a long shot's at once is P x T x H x W bytes.
+    for person, frame in zip(*np.nonzero(tracks.valid)):
+        mask = tracks.mask(int(person), int(frame))
+        r, c = np.flatnonzero(mask.any(1)), np.flatnonzero(mask.any(0))
         if r.size and c.size:
-            out[index] = (c[0], r[0], c[-1], r[-1])
+            out[person, frame] = (c[0], r[0], c[-1], r[-1])
     return out
 
 

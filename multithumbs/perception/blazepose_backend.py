@@ -28,9 +28,6 @@ from multithumbs.perception.joints import blazepose33_to_smpl24
 from multithumbs.perception.pose_tracking import ShotPoses, TrackerConfig, track_shot
 from multithumbs.types import PersonTracks, Shots
 
-BACKEND_NAME = "blazepose"
-
-
 @dataclass(frozen=True)
 class BlazePoseConfig:
     """The CPU backend's settings."""
@@ -130,15 +127,13 @@ def blazepose_tracks(frames: Iterable[np.ndarray], shots: Shots, K: np.ndarray, 
 def run_blazepose(video: str | Path, shots: Shots, K: np.ndarray, body=None,
                   config: BlazePoseConfig = BlazePoseConfig(), progress=None) -> list[PersonTracks]:
     """:func:`blazepose_tracks` on a video file."""
-    from multithumbs.perception.blazepose_models import BlazePose, check_models
+    from multithumbs.perception.blazepose_models import BlazePose
     from multithumbs.video import iter_frames
 
-    check_models()
     tracks, _ = blazepose_tracks(iter_frames(video), shots, K, body, config,
                                  BlazePose(num_threads=config.num_threads), progress)
     return tracks
 
 
-
-__all__ = ["BACKEND_NAME", "BlazePoseConfig", "StageSeconds", "poses_to_tracks", "blazepose_tracks",
+__all__ = ["BlazePoseConfig", "StageSeconds", "poses_to_tracks", "blazepose_tracks",
            "run_blazepose"]
