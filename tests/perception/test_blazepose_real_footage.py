@@ -41,8 +41,6 @@ def test_megamind_dialogue_has_a_body_on_its_characters_in_every_shot(opencv_sam
     assert json.loads((out / "outputs.json").read_text())
 
 
-@pytest.mark.xfail(run=False, reason="known defect: perception finishes (36 tracks, 3 GB), then a later stage grows "
-                                     "past 20 GB on 795 frames of 768x576 and is killed; docs/RESULTS.md, issue 16")
 def test_vtest_pedestrians_are_tracked_without_a_cut(opencv_samples, tmp_path):
     out = tmp_path / "vtest"
     run(opencv_samples / "vtest.avi", out, tmp_path)
