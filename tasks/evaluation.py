@@ -15,7 +15,7 @@ import numpy as np
 from prefect import task
 
 from storage.store import ArtifactRef, CorruptArtifact
-from tasks.artifacts import _retry_on_io, load, open_store, stage_key
+from tasks.artifacts import _retry_on_io, load, open_store, prefect_cache_key, stage_key
 
 STAGE = "evaluate"
 
@@ -36,10 +36,10 @@ def evaluation_key(result: ArtifactRef, truth: ArtifactRef, params: dict[str, An
 
 
 def _cache_key(context, parameters: dict) -> str | None:
-    """Prefect's cache key while the result's store holds the metrics (as :func:`tasks.artifacts.stage_task`)."""
+    """Prefect's cache key of the metrics in the result's store (:func:`tasks.artifacts.prefect_cache_key`)."""
     result, truth = parameters["result"], parameters["truth"]
     key = evaluation_key(result, truth, evaluation_params(parameters.get("smpl_model"), parameters.get("options")))
-    return key if open_store(result.store).exists(key) else None
+    return prefect_cache_key(context, key, result.store)
 
 
 def _read(store, key: str) -> dict[str, Any]:
