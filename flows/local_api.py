@@ -286,7 +286,8 @@ def _start_kept(prefect_home: Path, linger: float, lease: Lease) -> LocalAPI:
 
 
 def stop_kept(prefect_home: Path, timeout: float = 30.0) -> bool:
-    """Stop the kept server on ``prefect_home`` now (its keeper: SIGTERM); whether one was running."""
+    """Stop the kept server on ``prefect_home`` (SIGTERM to its keeper: at once unless a command is using it,
+    then when that command ends), waiting up to ``timeout`` seconds; whether one was running."""
     record = _read_kept(prefect_home)
     if record is None or not _alive(record["pid"]):
         return False
@@ -299,30 +300,41 @@ def stop_kept(prefect_home: Path, timeout: float = 30.0) -> bool:
 
 def keep(prefect_home: Path, port: int, linger: float) -> int:
     """The keeper: run the server on ``port`` until it has been idle ``linger`` seconds with no command
-    holding the lease (or SIGTERM), then stop it; returns its exit code. Stdlib only, like this module."""
+    holding the lease, then stop it; returns its exit code. SIGTERM (:func:`stop_kept`) withdraws the record
+    at once (new commands start their own server) and stops the server as soon as no command holds the lease;
+    a second SIGTERM or SIGINT stops it at once. Stdlib only, like this module."""
     record_path, lease_path = prefect_home / KEPT_FILE, prefect_home / LEASE_FILE
     command, env = _server_command(port)
     server = subprocess.Popen(command, env=env, stdin=subprocess.DEVNULL, cwd=prefect_home)
+    asked = []
 
     def on_term(signum, frame):
-        raise SystemExit(0)
+        asked.append(signum)
+        if len(asked) > 1 or signum == signal.SIGINT:
+            raise SystemExit(0)
+        _forget(record_path)
 
     signal.signal(signal.SIGTERM, on_term)
     signal.signal(signal.SIGINT, on_term)
+    deadline = time.monotonic()
     try:
         while server.poll() is None:
-            time.sleep(POLL_SECONDS)
-            try:
-                idle = time.time() - lease_path.stat().st_mtime
-            except OSError:  # the Prefect home is gone
-                break
-            if idle < linger:
-                continue
+            if not asked:
+                time.sleep(max(0.0, deadline - time.monotonic()))
+                deadline = time.monotonic() + POLL_SECONDS
+                try:
+                    idle = time.time() - lease_path.stat().st_mtime
+                except OSError:  # the Prefect home is gone
+                    break
+                if idle < linger:
+                    continue
             fh = open(lease_path, "a")
             try:
                 fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:
                 fh.close()
+                if asked:
+                    time.sleep(0.1)
                 continue  # a command is using the server
             # The lock is held until this process exits: a command starting meanwhile waits for it, finds no
             # record and starts its own server.

@@ -2,6 +2,7 @@
 stopped under a command using it, and stops by itself once idle; ``MULTITHUMBS_API_LINGER=0`` stops it with
 the command. Real servers (each ~5 s to start), no flow."""
 
+import os
 import sys
 import time
 
@@ -15,15 +16,20 @@ def home(tmp_path, monkeypatch):
     """A Prefect home for this test; Prefect hidden from start_api (the test process imported it, which
     would make start_api leave the API to Prefect), PREFECT_API_URL restored afterwards."""
     monkeypatch.delitem(sys.modules, "prefect", raising=False)
-    monkeypatch.delenv("PREFECT_API_URL", raising=False)
+    api_url = os.environ.pop("PREFECT_API_URL", None)  # start_api sets it: restored by hand below
     home = tmp_path / "prefect"
     home.mkdir()
     monkeypatch.setenv("PREFECT_HOME", str(home))
     for name, value in (("PREFECT_SERVER_ANALYTICS_ENABLED", "false"), ("DO_NOT_TRACK", "1"),
                         ("PREFECT_LOGGING_LEVEL", "WARNING")):  # as the CLI's flow_environment
         monkeypatch.setenv(name, value)
-    yield home
-    local_api.stop_kept(home)
+    try:
+        yield home
+    finally:
+        local_api.stop_kept(home)
+        os.environ.pop("PREFECT_API_URL", None)
+        if api_url is not None:
+            os.environ["PREFECT_API_URL"] = api_url
 
 
 def _until(condition, seconds: float) -> bool:
@@ -44,7 +50,7 @@ def test_a_server_is_kept_for_the_next_command_and_stops_once_idle(home, monkeyp
     first.stop()  # the command ends: its server stays for the next
     assert local_api.healthy(first.api_url)
 
-    monkeypatch.delenv("PREFECT_API_URL")  # the next command is another process
+    del os.environ["PREFECT_API_URL"]  # the next command is another process
     second = local_api.start_api(home)
     assert (second.source, second.api_url) == ("kept", first.api_url)
     second.wait(5)
@@ -52,8 +58,22 @@ def test_a_server_is_kept_for_the_next_command_and_stops_once_idle(home, monkeyp
     time.sleep(1 + 2 * local_api.POLL_SECONDS + 1)
     assert local_api.healthy(second.api_url)
     second.stop()
-    assert _until(lambda: not (home / local_api.KEPT_FILE).exists(), 1 + 3 * local_api.POLL_SECONDS + 20)
-    assert not local_api.healthy(first.api_url)
+    assert _until(lambda: not local_api.healthy(first.api_url), 1 + 3 * local_api.POLL_SECONDS + 20)
+    assert not (home / local_api.KEPT_FILE).exists()
+
+
+@pytest.mark.skipif(local_api.fcntl is None, reason="keeping a server needs POSIX locks")
+def test_stopping_a_kept_server_waits_for_the_command_using_it(home, monkeypatch):
+    """What `multithumbs dashboard` and the benchmark do: the record goes at once (the next command starts
+    its own server), the server when the command using it ends."""
+    monkeypatch.setenv(local_api.LINGER_ENV, "600")
+    api = local_api.start_api(home)
+    api.wait(120)
+    assert local_api.stop_kept(home, timeout=1 + local_api.POLL_SECONDS)
+    assert not (home / local_api.KEPT_FILE).exists() and local_api.healthy(api.api_url)
+    api.stop()
+    assert _until(lambda: not local_api.healthy(api.api_url), 20)
+    assert not local_api.stop_kept(home)
 
 
 def test_linger_0_stops_the_server_with_the_command(home, monkeypatch):
