@@ -138,7 +138,7 @@ def kept_server(prefect_home: Path, startup_seconds: float = 120.0) -> dict | No
     record = _read_kept(prefect_home)
     if record is None or record.get("runtime") != runtime_identity() or not _alive(record["pid"]):
         return None
-    if healthy(record["api_url"], timeout=2.0):
+    if healthy(record["api_url"], timeout=5.0):  # busy with another command's run, it may answer slowly
         return record
     try:
         young = time.time() - (prefect_home / KEPT_FILE).stat().st_mtime < startup_seconds
