@@ -55,7 +55,7 @@ def benchmark(suite: str = "standard", variants: Sequence[str] | None = None, sc
     """
     from multithumbs.bench import EXTRA_KEYS, METRIC_KEYS, check_variants
     from multithumbs.pipeline import VARIANTS
-    from multithumbs.synth.scene import config_to_json
+    from multithumbs.synth.config import config_to_json
     from multithumbs.synth.suite import suite as suite_configs, suite_scene
 
     variants = check_variants(list(variants or VARIANTS))

@@ -11,7 +11,7 @@ from prefect.artifacts import create_markdown_artifact, create_table_artifact
 from prefect.task_runners import ThreadPoolTaskRunner
 
 from flows.method import run_method, space_refs
-from multithumbs.bench import METRIC_KEYS
+from multithumbs.metric_names import METRIC_KEYS
 from storage.store import ArtifactRef
 from tasks.evaluation import evaluate_result
 from tasks.inputs import simulate_inputs
@@ -26,7 +26,7 @@ this project's own variants, and how the video's ATE was aligned."""
 def metrics_rows(metrics: dict[str, Any]) -> list[dict[str, Any]]:
     """The metrics as table rows ``metric, value, unit``: the headline ones in the paper's order, then this
     project's own, then how each ATE was aligned (:func:`multithumbs.metrics.evaluate.report_rows`)."""
-    from multithumbs.metrics.evaluate import report_rows
+    from multithumbs.metric_names import report_rows
 
     return report_rows(metrics)
 
@@ -75,7 +75,7 @@ def reconstruct_synthetic(scene: dict | str, out_dir: str, store_url: str, varia
     from tasks.body import resolve_body
 
     if isinstance(scene, str):
-        from multithumbs.synth.scene import config_to_json
+        from multithumbs.synth.config import config_to_json
         from multithumbs.synth.suite import suite_scene
 
         scene = config_to_json(suite_scene("standard", scene))

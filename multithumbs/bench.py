@@ -23,12 +23,11 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from multithumbs.errors import InputError
+from multithumbs.metric_names import METRIC_KEYS  # noqa: F401  (re-exported)
 from multithumbs.pipeline import (VARIANTS, MethodConfig, Placement, align_cuts, post_processed_world, prepare_inputs,
                                   propagate, reidentify, to_world_result, variant_config, world_diagnostics)
 from multithumbs.synth.scene import SceneConfig
 
-METRIC_KEYS = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "ate", "ids", "pck", "jitter", "fs")
-"""The headline metrics in the paper's order, with the field's meaning (docs/METRICS.md)."""
 EXTRA_KEYS = ("w_mpjpe_track", "wa_mpjpe_track", "accel_world", "fs_gt", "fs_truth", "ate_mean", "ids_total",
               "ids_within_shots", "coverage")
 """This project's own variants and diagnostics, reported beside the headline metrics."""

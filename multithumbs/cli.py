@@ -42,7 +42,7 @@ def evaluate_cmd(
     if as_json:
         print(json.dumps(_jsonable(metrics), indent=2, sort_keys=True))
         return
-    from multithumbs.metrics.evaluate import report_rows
+    from multithumbs.metric_names import report_rows
 
     table = Table(title=f"{result.name} vs {truth.name}")
     table.add_column("metric")
@@ -140,12 +140,12 @@ def run_cmd(
         from multithumbs.perception.hmr2 import select_device
 
         select_device(device)  # --device cuda on a machine without CUDA fails here, in one line
-    from multithumbs.body.model import resolve_model_path
+    from multithumbs.body.paths import resolve_model_path
 
     resolve_model_path(smpl_model)
     out_dir = make_output_dir(out)
     from flows.video import reconstruct_video
-    from multithumbs.bench import METRIC_KEYS
+    from multithumbs.metric_names import METRIC_KEYS
 
     flow_logging()
     from multithumbs.cli_format import stage_bars
@@ -160,7 +160,7 @@ def run_cmd(
         print(json.dumps(_jsonable(summary), indent=2, sort_keys=True))
         return
     from multithumbs.cli_format import file_lines, format_value, output_console
-    from multithumbs.metrics.evaluate import METRIC_UNITS
+    from multithumbs.metric_names import METRIC_UNITS
 
     table = Table(title=f"{video.name}: {summary['num_shots']} shots ({variant})")
     table.add_column("stage", no_wrap=True)
@@ -203,15 +203,15 @@ def demo_cmd(
 
     check_output_dir(out, overwrite, ("video.mp4", "ground_truth.npz", "contact_sheet.png"))
     start_flow_api()
-    from multithumbs.bench import METRIC_KEYS
-    from multithumbs.pipeline import variant_config
+    from multithumbs.metric_names import METRIC_KEYS
+    from multithumbs.method.config import variant_config
     from multithumbs.synth.files import prepare_output_dir
-    from multithumbs.synth.scene import config_to_json
+    from multithumbs.synth.config import config_to_json
     from multithumbs.synth.suite import suite_scene
 
     config = suite_scene("standard", scene)
     variant_config(variant)
-    from multithumbs.body.model import resolve_model_path
+    from multithumbs.body.paths import resolve_model_path
 
     resolve_model_path(smpl_model)  # a missing file fails before Prefect starts
     out_dir = prepare_output_dir(out, overwrite)
@@ -227,7 +227,7 @@ def demo_cmd(
                                         store or str((out_dir / "store").resolve()), variant,
                                         smpl_model=None if smpl_model is None else str(smpl_model.resolve()))
     from multithumbs.cli_format import metric_list_table, output_console
-    from multithumbs.metrics.evaluate import METRIC_UNITS
+    from multithumbs.metric_names import METRIC_UNITS
 
     # The title stays one line; the label a reader must not miss goes under the table at full width (a
     # caption would wrap to the table's narrow width).

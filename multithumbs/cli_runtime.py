@@ -52,13 +52,17 @@ _API = None  # the Prefect API of this command's flows (flows.local_api.LocalAPI
 
 
 def start_flow_api() -> None:
-    """Find or start the flows' Prefect API now, before Prefect and torch are imported, so an ephemeral
-    server starts while they import (flows/local_api.py says why); a dashboard on the CLI's Prefect home
-    (``multithumbs dashboard``) is used when it runs."""
+    """Find or start the flows' Prefect API now, before Prefect and torch are imported, so a server starts
+    while they import (flows/local_api.py says why); a dashboard on the CLI's Prefect home (``multithumbs
+    dashboard``) is used when it runs, else the server an earlier command kept (``MULTITHUMBS_API_LINGER``
+    seconds after it, default 600; 0: this command's server stops with it)."""
     from flows.local_api import start_api
 
     global _API
-    _API = start_api(Path(os.environ["PREFECT_HOME"]), log_file())
+    try:
+        _API = start_api(Path(os.environ["PREFECT_HOME"]), log_file())
+    except RuntimeError as exc:  # MULTITHUMBS_API_LINGER is not a number of seconds
+        raise InputError(str(exc)) from None
     with open(log_file(), "a", encoding="utf-8") as fh:
         fh.write(f"Prefect API: {_API.source} at {_API.api_url}\n")
 
@@ -92,7 +96,8 @@ def refuse(message: str, exc: BaseException) -> None:
 
 
 def finish(code) -> None:
-    """End the process with ``code`` (an exit code, None or a message), stopping a server it started.
+    """End the process with ``code`` (an exit code, None or a message), stopping a server it started (or
+    handing a kept one back to its keeper).
 
     Once torch or Prefect is imported, the process ends with ``os._exit`` after atexit handlers have run and
     output is flushed: tearing down the interpreter after torch, Prefect and its server modules took ~5 s

@@ -22,7 +22,7 @@ def method_config(variant: str = "full", overrides: dict[str, Any] | None = None
     Unknown names raise :class:`~multithumbs.errors.InputError`.
     """
     from multithumbs.errors import InputError
-    from multithumbs.pipeline import variant_config
+    from multithumbs.method.config import variant_config
 
     config = variant_config(variant)
     for name, value in (overrides or {}).items():

@@ -20,7 +20,7 @@ trackers such as PHALP link them across a cut: appearance and pose, no location)
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -29,64 +29,14 @@ import torch
 from multithumbs.appearance import mean_descriptor
 from multithumbs.errors import InputError
 from multithumbs.geometry import reexpress_for_intrinsics
-from multithumbs.method.align import AlignConfig, AlignedBoundary, BoundaryPeople, align_boundary
-from multithumbs.method.post import PostConfig, PostInput, post_process
-from multithumbs.method.reid import Candidates, Matching, ReidConfig, match_people
+from multithumbs.method.align import AlignedBoundary, BoundaryPeople, align_boundary
+# The settings live without torch in multithumbs.method.config; re-exported here as before.
+from multithumbs.method.config import (VARIANTS, AlignConfig, MethodConfig, PostConfig, ReidConfig,  # noqa: F401
+                                       variant_config)
+from multithumbs.method.post import PostInput, post_process
+from multithumbs.method.reid import Candidates, Matching, match_people
 from multithumbs.world_placement import Placement, propagate
 from multithumbs.types import CameraTrajectory, PersonTracks, SharedSpace, Shots, WorldResult
-
-VARIANTS = ("full", "no_cam", "no_post", "no_stage", "no_align", "independent_shots", "appearance_only",
-            "distance_only")
-
-
-@dataclass(frozen=True)
-class MethodConfig:
-    """The whole method's settings (paper defaults).
-
-    Attributes:
-        align: scale and alignment (§3.1–3.2).
-        reid: re-identification (§3.4).
-        post: post-processing (§3.5).
-        skip_align: the ``no_align`` ablation.
-        skip_post: the ``no_post`` ablation.
-        independent_shots: the single-shot baseline (no shared space; cross-cut links by appearance and pose).
-        appearance_window: frames next to a cut whose appearance descriptors are averaged for re-ID.
-        propagate_orientation: carry the boundary alignment's orientation correction along each shot (the
-            paper's §3.3). Default False: the aligned position is carried and the estimator's per-frame
-            camera-relative orientation kept, because one frame's fitted orientation is noisier than the
-            estimator's (standard suite: W-MPJPE 247.5 -> 204.3 mm, MPJPE 36.4 -> 28.4 mm; docs/RESULTS.md).
-        variant: name of the variant this config implements (for reports).
-    """
-
-    align: AlignConfig = field(default_factory=AlignConfig)
-    reid: ReidConfig = field(default_factory=ReidConfig)
-    post: PostConfig = field(default_factory=PostConfig)
-    skip_align: bool = False
-    skip_post: bool = False
-    independent_shots: bool = False
-    appearance_window: int = 15
-    propagate_orientation: bool = False
-    variant: str = "full"
-
-
-def variant_config(variant: str, base: MethodConfig = MethodConfig()) -> MethodConfig:
-    """The config of a named variant, derived from ``base``."""
-    if variant not in VARIANTS:
-        raise InputError(f"variant {variant!r}: unknown; choose from {', '.join(VARIANTS)}")
-    rep = dataclasses.replace
-    no_geo = rep(base.reid, w_geo=0.0, max_distance=float("inf"))
-    changes = {
-        "full": {},
-        "no_cam": {"align": rep(base.align, refine_cameras=False)},
-        "no_post": {"skip_post": True},
-        "no_stage": {"align": rep(base.align, staged=False)},
-        "no_align": {"skip_align": True},
-        "independent_shots": {"independent_shots": True, "reid": rep(no_geo, w_app=1.0, w_pose=1.0)},
-        "appearance_only": {"reid": rep(no_geo, w_app=1.0, w_pose=0.0)},
-        "distance_only": {"reid": rep(base.reid, w_app=0.0, w_pose=0.0)},
-    }[variant]
-    return rep(base, variant=variant, **changes)
-
 
 # ----------------------------------------------------------------------------------------------------
 # 1. Boundary people

@@ -8,29 +8,40 @@ contract, so a new field needs no codec change.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any
 
 import numpy as np
 
-from multithumbs.method.align import AlignedBoundary
-from multithumbs.method.reid import Matching
-from multithumbs.pipeline import Identities, Placement
-from multithumbs.types import CameraTrajectory, GroundTruth, PersonTracks, SharedSpace, Shots, WorldResult
+CONTRACT_NAMES = ("Shots", "PersonTracks", "CameraTrajectory", "SharedSpace", "WorldResult", "GroundTruth",
+                  "AlignedBoundary", "Placement", "Identities", "Matching")
+"""The classes an artifact may hold, by name (what ``attributes["contract"]`` records)."""
 
-CONTRACTS: dict[str, type] = {cls.__name__: cls for cls in
-                              (Shots, PersonTracks, CameraTrajectory, SharedSpace, WorldResult, GroundTruth,
-                               AlignedBoundary, Placement, Identities, Matching)}
+
+@functools.cache
+def contracts() -> dict[str, type]:
+    """Name -> class of every contract. Imported on first use: the method's outputs live beside the method
+    (torch), and a run that only checks the store must not import it."""
+    from multithumbs.method.align import AlignedBoundary
+    from multithumbs.method.reid import Matching
+    from multithumbs.pipeline import Identities, Placement
+    from multithumbs.types import CameraTrajectory, GroundTruth, PersonTracks, SharedSpace, Shots, WorldResult
+
+    classes = {cls.__name__: cls for cls in (Shots, PersonTracks, CameraTrajectory, SharedSpace, WorldResult,
+                                             GroundTruth, AlignedBoundary, Placement, Identities, Matching)}
+    assert tuple(classes) == CONTRACT_NAMES
+    return classes
 
 
 def _is_contract(value: Any) -> bool:
-    return type(value).__name__ in CONTRACTS
+    return type(value).__name__ in CONTRACT_NAMES
 
 
 def encode(obj: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """``(arrays, attributes)`` of a contract instance."""
     name = type(obj).__name__
-    if name not in CONTRACTS:
-        raise TypeError(f"no codec for {name}; known: {', '.join(sorted(CONTRACTS))}")
+    if name not in CONTRACT_NAMES:
+        raise TypeError(f"no codec for {name}; known: {', '.join(sorted(CONTRACT_NAMES))}")
     arrays: dict[str, np.ndarray] = {}
     fields: dict[str, Any] = {}
     for f in dataclasses.fields(obj):
@@ -66,7 +77,7 @@ def encode(obj: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
 
 def decode(arrays: dict[str, np.ndarray], attributes: dict[str, Any]) -> Any:
     """Inverse of :func:`encode`."""
-    cls = CONTRACTS[attributes["contract"]]
+    cls = contracts()[attributes["contract"]]
     kwargs: dict[str, Any] = {}
     for f in dataclasses.fields(cls):
         if f.name in arrays:

@@ -26,10 +26,11 @@ from typing import Any, Iterable
 
 import fsspec
 import numpy as np
-import zarr
-from zarr.codecs import BloscCodec
 
 from storage.keys import is_key
+
+# zarr (~0.3 s to import) is imported where arrays are read or written: whether an artifact exists is a
+# question for fsspec alone, and a re-run served from the store asks nothing else.
 
 
 class CorruptArtifact(RuntimeError):
@@ -78,6 +79,8 @@ class ArtifactStore:
         return f"{self.root}/index/{key}.json"
 
     def _zarr_store(self, path: str, read_only: bool):
+        import zarr
+
         if self.local:
             return zarr.storage.LocalStore(path, read_only=read_only)
         # zarr drives its own event loop: give it its own filesystem instance built from the URL.
@@ -132,6 +135,9 @@ class ArtifactStore:
         work = f"{self.root}/tmp/{key}.{uuid.uuid4().hex}" if self.local else target
         if not self.local and self.fs.exists(target):
             self.fs.rm(target, recursive=True)  # leftovers of a writer that died before its commit record
+        import zarr
+        from zarr.codecs import BloscCodec
+
         try:
             group = zarr.create_group(store=self._zarr_store(work, read_only=False),
                                       attributes={"multithumbs": record}, zarr_format=3)
@@ -176,6 +182,8 @@ class ArtifactStore:
         """
         if not self.exists(key):
             raise KeyError(f"artifact {key} is not in the store {self.url}")
+        import zarr
+
         record = self.record(key)
         try:
             group = zarr.open_group(store=self._zarr_store(self._group_path(key), read_only=True), mode="r")

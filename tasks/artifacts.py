@@ -2,14 +2,21 @@
 
 Every task takes the store's URL, its inputs as :class:`~storage.store.ArtifactRef` s and its parameters
 as plain JSON, computes its artifact key from them (:func:`storage.keys.artifact_key`), and returns the
-ref without computing when the store already holds that key: the store is the source of truth. The
-same key is the task's Prefect ``cache_key_fn`` while the store holds it, so Prefect's cache and the
-store agree, and a deleted or corrupt artifact is recomputed rather than served from Prefect's cache.
+ref without computing when the store already holds that key: the store is the source of truth.
+
+Prefect's cache key (:func:`prefect_cache_key`) is that key with the store's URL: the ref it caches is then
+exactly the one the store would give. A run whose store holds the key is served from Prefect's cache (no
+function call, nothing read); a run that computes the artifact caches its ref under the key, so the next
+run is served from the cache, not by the function checking the store. Only when the store lacks the key
+while Prefect still holds a ref to it (the artifact was deleted) is the key withheld, so that the task runs
+and recomputes rather than return a ref to nothing. A corrupt artifact is found when it is read: by the
+task's own check when it runs (:func:`cached_stage`), or by the stage that loads it.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
 from typing import Any, Callable
 
 from prefect import task
@@ -19,9 +26,10 @@ from storage.keys import artifact_key
 from storage.store import ArtifactRef, ArtifactStore, CorruptArtifact
 
 STAGE_VERSIONS = {"simulate_inputs": 2, "ground_truth": 1, "shots": 2, "perception": 3, "trajectory": 2, "space": 2,
-                  "align": 4, "propagate": 3, "reid": 1, "post": 2}
+                  "align": 4, "propagate": 3, "reid": 1, "post": 2, "evaluate": 1}
 """Bump a stage's version when its code changes its output: its key and every key after it change.
-(Torch stages bumped together when every stage came to compute with one thread, :func:`compute_fixed`.)"""
+(Torch stages bumped together when every stage came to compute with one thread, :func:`compute_fixed`.)
+``evaluate`` (:mod:`tasks.evaluation`) is the metrics: bump it when a metric's code or default changes."""
 
 
 @functools.lru_cache(maxsize=8)
@@ -39,10 +47,24 @@ def load(ref: ArtifactRef) -> Any:
     return decode(*open_store(ref.store).read(ref.key))
 
 
+def prefect_cache_key(context, key: str, store_url: str) -> str | None:
+    """Prefect's cache key of the artifact ``key`` of the store at ``store_url`` (module docstring): the key
+    and a digest of the URL, or None when the store lacks the artifact but Prefect has a ref to it cached."""
+    cache_key = f"{key}-{hashlib.sha256(store_url.encode()).hexdigest()[:16]}"
+    if open_store(store_url).exists(key):
+        return cache_key
+    results = getattr(context, "result_store", None)
+    try:
+        stale = results is None or results.exists(cache_key)
+    except Exception:  # noqa: BLE001 - when in doubt, run the task and cache nothing
+        stale = True
+    return None if stale else cache_key
+
+
 def _cache_key(stage: str) -> Callable:
     def key_fn(context, parameters: dict) -> str | None:
         key = stage_key(stage, parameters["params"], parameters["inputs"])
-        return key if open_store(parameters["store_url"]).exists(key) else None
+        return prefect_cache_key(context, key, parameters["store_url"])
     return key_fn
 
 

@@ -15,10 +15,10 @@ def resolve_body(smpl_model: str | Path | None) -> tuple[str | None, dict]:
     """``(path or None, key parameters)`` of the model a flow was asked for.
 
     ``smpl_model`` else ``$MULTITHUMBS_SMPL_MODEL`` else the procedural body, as
-    :func:`multithumbs.body.model.resolve_model_path` decides; resolved once in the flow, so every task
+    :func:`multithumbs.body.paths.resolve_model_path` decides; resolved once in the flow, so every task
     of a run poses the same file. Raises :class:`~multithumbs.errors.InputError` for a missing file.
     """
-    from multithumbs.body.model import resolve_model_path
+    from multithumbs.body.paths import resolve_model_path
     from storage.keys import file_digest
 
     path, source = resolve_model_path(smpl_model)

@@ -32,7 +32,7 @@ def simulate_inputs(store_url: str, scene: dict, out_dir: str | None = None, smp
     bodies (None: the procedural body) and ``body`` its identity (:func:`tasks.body.resolve_body`),
     hashed into the keys.
     """
-    from multithumbs.synth.scene import config_from_json
+    from multithumbs.synth.config import config_from_json
 
     config = config_from_json(scene)
     store = open_store(store_url)

@@ -45,10 +45,6 @@ def write_outputs(out_dir: str, name: str, variant: str, video_path: str, method
     """Write ``result.npz``, ``metrics.json`` (with ground truth), the overlay video, plots, exports and
     ``report.md`` into ``out_dir``, meshes posed with ``smpl_model`` (None: the procedural body); returns
     output name -> path."""
-    from multithumbs.body.model import load_body_model
-    from multithumbs.io import save_result
-    from multithumbs.viz.outputs import write_video_outputs
-
     out = Path(out_dir)
     stamp_path = out / STAMP_NAME
     stamp = {"result": method_refs["result"].key, "metrics": metrics, "video": str(video_path),
@@ -62,6 +58,12 @@ def write_outputs(out_dir: str, name: str, variant: str, video_path: str, method
                 return previous["files"]
         except (ValueError, KeyError, TypeError):
             pass
+    # Imported only when something is written: a re-run whose stamp matches imports neither torch nor
+    # the pictures' libraries.
+    from multithumbs.body.model import load_body_model
+    from multithumbs.io import save_result
+    from multithumbs.viz.outputs import write_video_outputs
+
     result = load(method_refs["result"])
     files = {"result": str(save_result(out / "result.npz", result, metadata={
         "variant": variant, "name": name, "artifact": method_refs["result"].key, "backends": run_info["backends"]}))}

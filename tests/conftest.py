@@ -11,6 +11,9 @@ def _isolated_cache(tmp_path_factory):
     """Generated files (the procedural body) go to a per-session cache, never the home folder."""
     if "MULTITHUMBS_CACHE" not in os.environ:
         os.environ["MULTITHUMBS_CACHE"] = str(tmp_path_factory.mktemp("cache"))
+    # The CLI commands tests run stop their Prefect server with them: a kept one (flows/local_api.py) would
+    # outlive the test by ten minutes. The tests of keeping set it themselves.
+    os.environ.setdefault("MULTITHUMBS_API_LINGER", "0")
     yield
 
 

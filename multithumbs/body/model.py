@@ -17,7 +17,6 @@ import contextlib
 import functools
 import io
 import itertools
-import os
 import pickle
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,12 +27,10 @@ import torch
 from smplx.lbs import vertices2joints
 from smplx.utils import Struct
 
-from multithumbs.body.procedural import procedural_model_path, write_npz
+from multithumbs.body.procedural import write_npz
 from multithumbs.conventions import NUM_BETAS, NUM_BODY_JOINTS, NUM_JOINTS
+from multithumbs.body.paths import MODEL_ENV_VAR, resolve_model_path  # noqa: F401  (re-exported)
 from multithumbs.errors import InputError
-
-MODEL_ENV_VAR = "MULTITHUMBS_SMPL_MODEL"
-"""Environment variable naming the user's SMPL file (``.npz`` or ``.pkl``)."""
 
 SMPL_NUM_VERTICES = 6890
 SMPL_FOOT_VERTEX_IDS = np.array([3216, 3387, 6617, 6787])
@@ -56,24 +53,6 @@ class BodyOutput:
 
     vertices: torch.Tensor
     joints: torch.Tensor
-
-
-def resolve_model_path(model_path: str | Path | None = None) -> tuple[Path, str]:
-    """The body file to load and its source label (``"procedural"`` or the resolved path).
-
-    Order: ``model_path``, else ``$MULTITHUMBS_SMPL_MODEL``, else the procedural body (generated into
-    the cache on first use). Raises :class:`InputError` if a named file does not exist.
-    """
-    named = model_path if model_path is not None else os.environ.get(MODEL_ENV_VAR) or None
-    if named is None:
-        return procedural_model_path().resolve(), "procedural"
-    origin = "model_path" if model_path is not None else f"${MODEL_ENV_VAR}"
-    path = Path(named).expanduser().resolve()
-    if not path.is_file():
-        raise InputError(f"{origin}: SMPL model file {path} does not exist")
-    if path.suffix.lower() not in (".npz", ".pkl"):
-        raise InputError(f"{origin}: SMPL model file {path} must be .npz (numpy) or .pkl, got {path.suffix!r}")
-    return path, str(path)
 
 
 class BodyModel:

@@ -31,7 +31,6 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from multithumbs.conventions import NUM_BETAS, NUM_JOINTS, SMPL_PARENTS
 
@@ -313,6 +312,8 @@ def _sweep(tube: _Tube) -> _TubeMesh:
     centres = knots[seg] + (u - seg)[:, None] * (knots[seg + 1] - knots[seg])
     tangents = np.gradient(centres, axis=0)
     tangents /= np.linalg.norm(tangents, axis=1, keepdims=True)
+    from scipy.interpolate import PchipInterpolator  # here: finding the cached body's file needs no scipy
+
     ctrl = tube.profile
     ra, rb, ob = (PchipInterpolator(ctrl[:, 0], ctrl[:, c])(u) for c in (1, 2, 3))
     axial = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(centres, axis=0), axis=1))])

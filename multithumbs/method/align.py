@@ -44,81 +44,10 @@ from scipy.optimize import least_squares
 from multithumbs.determinism import fix_threads
 from multithumbs.geometry import axis_angle_to_matrix, matrix_to_axis_angle, project, vertex_normals
 from multithumbs.method.align_objective import _Problem
+from multithumbs.method.config import AlignConfig  # noqa: F401  (defined there without torch; re-exported)
 from multithumbs.method.scale import depth_ratio_scale, mesh_to_points_scale
 from multithumbs.method.views import register_views
 from multithumbs.types import SharedSpace
-
-
-@dataclass(frozen=True)
-class AlignConfig:
-    """Alignment settings (paper §3.2 defaults).
-
-    Attributes:
-        iterations: iterations of stages 1, 2 and 3 (stage 1 is the initialisation; its count is kept for
-            the record, as in Algorithm 1, and costs nothing).
-        lr_root: AdamW learning rate of the roots (m and rad per step).
-        lr_camera: AdamW learning rate of the cameras.
-        w2d_stage2: λ2D in stage 2.
-        w2d_stage3: λ2D in stage 3.
-        w_sil: λsil.
-        w_depth: λdepth.
-        refine_cameras: stage 3 also refines both cameras (False: the ``no_cam`` ablation).
-        staged: run the stages in order (False: the ``no_stage`` ablation — every parameter from the
-            estimator's own placement, optimised jointly under the full objective from the start).
-        keypoint_confidence: 2D keypoints below this confidence are ignored.
-        max_vertices: vertices per body used by the silhouette and depth losses (an even subsample).
-        min_person_points: fewest scene points in a mask for a person to count in the scale estimate.
-        depth_robust_scale: Geman-McClure scale (m) of the depth residual: vertices hidden behind another
-            part of the same body (whose pixel shows that part) are outliers, not targets; 0 = plain squares.
-            The kernel's pull fades beyond about this distance, so it must exceed the depth error left by a
-            mesh whose size is a few percent off (0.15 m: standard suite full W-MPJPE 177.8 mm against 188.4
-            with 0.05, which let the 2D term alone set each person's depth; 194.1 with plain squares).
-        scale_method: ``"depth_ratio"`` (default: mesh over scene depth at the visible vertices' pixels) or
-            ``"max_radius"`` (the paper's ratio of maximum centroid-to-vertex distances); both compare a
-            mesh's size with its point cloud's, see :mod:`multithumbs.method.scale`.
-        fit_scale_to_keypoints: for ``depth_ratio``, place each mesh at the depth where its joints
-            reproject onto its 2D keypoints (:func:`fit_pelvis_to_keypoints`) before comparing depths, so
-            the scale follows the meshes' metric size and not the estimator's depth, which monocular
-            estimators get wrong by a per-track factor (False: the estimator's depth, as before).
-        threads: torch intra-op threads of the alignment, its setup and optimisation loop, set for good with
-            :func:`multithumbs.determinism.fix_threads` (0: leave torch's setting). The result's rounding
-            depends on the count, so it is fixed, never toggled and restored (that raced across threads).
-        points_follow_cameras: points observed in one boundary frame only move with that frame's camera
-            in stage 3 (module docstring); False for point maps predicted in the world directly (VGGT's
-            point head), which stay fixed while the cameras move, as in the paper.
-        register_views: before the stages, correct the second boundary camera so both frames' static
-            scenes agree (:func:`multithumbs.method.views.register_views`); part of the camera
-            refinement, so off with ``refine_cameras=False``.
-        view_samples: background points sampled per frame for that registration.
-        view_robust_scale: its Cauchy scale and occlusion margin (m).
-        view_smoothing_px: smoothing of the depth maps it compares with (pixels).
-        w_camera_prior: weight of ``‖ω‖² + ‖C − C₀‖²`` (rad², m²) keeping stage 3's cameras near their
-            registered poses: with points that follow their cameras, the people's losses leave a gauge
-            (camera, its points and its people moving together) that this fixes.
-    """
-
-    iterations: tuple[int, int, int] = (500, 500, 1500)
-    lr_root: float = 0.01
-    lr_camera: float = 0.002
-    w2d_stage2: float = 10.0
-    w2d_stage3: float = 50.0
-    w_sil: float = 0.01
-    w_depth: float = 1.0
-    refine_cameras: bool = True
-    staged: bool = True
-    keypoint_confidence: float = 0.3
-    max_vertices: int = 400
-    min_person_points: int = 20
-    depth_robust_scale: float = 0.15
-    scale_method: str = "depth_ratio"
-    fit_scale_to_keypoints: bool = True
-    threads: int = 1
-    points_follow_cameras: bool = True
-    register_views: bool = True
-    view_samples: int = 2000
-    view_robust_scale: float = 0.3
-    view_smoothing_px: float = 3.0
-    w_camera_prior: float = 1e-3
 
 
 @dataclass(frozen=True)

@@ -29,51 +29,7 @@ import torch
 
 from multithumbs.conventions import NUM_JOINTS
 from multithumbs.determinism import fix_threads
-
-
-@dataclass(frozen=True)
-class PostConfig:
-    """Post-processing settings (paper §3.5 defaults for λsmooth and λcross).
-
-    Attributes:
-        iterations: AdamW iterations.
-        lr: learning rate (m or rad per step).
-        w_smooth: λsmooth.
-        w_cross: λcross.
-        w_2d: weight of the per-frame 2D reprojection data term.
-        w_root: weight of the prior keeping translations near their propagated values (m²).
-        w_shape: weight of ‖β‖² inside the smoothness term.
-        w_pose_prior: weight of the pose prior inside the smoothness term.
-
-    The data and prior weights are set as a Gaussian MAP estimate would weigh them (each residual by
-    ``1 / 2σ²``, relative to the 2D term): 2D keypoints good to ~2.5 px in a 640-px image (ViTPose-class;
-    0.008 in normalised units), joint rotations good to ~6° (HMR2-class, 0.06 rad per axis-angle
-    component) and a propagated root good to ~6 cm give ``w_pose_prior ≈ 0.0007`` and ``w_root ≈ 0.01``
-    against ``w_2d = 10`` (about 24 keypoints per frame share it). The earlier ``w_pose_prior = 0.01``,
-    ``w_root = 1`` held pose and roots ~10x and ~100x too firmly on the estimator's values; standard
-    suite, full method: W-MPJPE 165.7 -> 154.3 mm, PA-MPJPE 20.5 -> 15.8 mm, Accel 7.57 -> 5.19
-    (docs/RESULTS.md).
-        pose_prior: ``"gaussian"`` (substitute, default) or ``"vposer"`` (needs ``vposer`` in :func:`post_process`).
-        keypoint_confidence: keypoints below it are ignored.
-        smooth_order: 1 penalises joint velocity ``‖J_t − J_{t+1}‖²`` (the paper's term); 2 penalises
-            acceleration ``‖J_{t−1} − 2J_t + J_{t+1}‖²``, which leaves steady walking and the ends of a
-            track alone (first differences pull a track's ends inwards and slow every walk).
-        threads: torch intra-op threads of the optimisation loop, set for good (0: leave torch's setting);
-            see :func:`multithumbs.determinism.fix_threads`.
-    """
-
-    iterations: int = 300
-    lr: float = 0.01
-    w_smooth: float = 10.0
-    w_cross: float = 1.0
-    w_2d: float = 10.0
-    w_root: float = 0.01
-    w_shape: float = 1e-5
-    w_pose_prior: float = 0.001
-    pose_prior: str = "gaussian"
-    keypoint_confidence: float = 0.3
-    smooth_order: int = 2
-    threads: int = 1
+from multithumbs.method.config import PostConfig  # noqa: F401  (defined there without torch; re-exported)
 
 
 @dataclass(frozen=True)

@@ -13,30 +13,8 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from multithumbs.appearance import appearance_dissimilarity
+from multithumbs.method.config import ReidConfig  # noqa: F401  (defined there without torch; re-exported)
 from multithumbs.geometry import axis_angle_to_matrix, rotation_angle
-
-
-@dataclass(frozen=True)
-class ReidConfig:
-    """Re-identification weights and gates (paper §3.4 defaults).
-
-    Attributes:
-        w_geo: weight λgeo of the root distance D (per metre).
-        w_app: weight λapp of the appearance dissimilarity A (in [0, 1]).
-        w_pose: weight λpos of the pose dissimilarity P (mean joint angle, radians).
-        max_distance: τ, matched pairs farther apart than this (m) are rejected.
-        max_speed: when a candidate was last (or first) seen some time before (after) the cut, the gate
-            grows by this walking speed times that gap (m/s): someone who left the view a second before
-            the cut may be a metre away when they reappear.
-        keypoint_confidence: a joint counts as visible when its 2D keypoint confidence exceeds this.
-    """
-
-    w_geo: float = 1.0
-    w_app: float = 0.2
-    w_pose: float = 0.35
-    max_distance: float = 1.0
-    max_speed: float = 1.5
-    keypoint_confidence: float = 0.5
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,7 @@ from multithumbs.metrics.gt_free import (
 from multithumbs.metrics.identity import (
     IdSwitches, associate_by_distance, associate_by_iou, count_id_switches, projected_boxes,
 )
+from multithumbs.metric_names import METRIC_UNITS, report_rows  # noqa: F401  (re-exported)
 from multithumbs.metrics.options import EvaluationOptions
 from multithumbs.metrics.pose import (
     accel, accel_world, foot_sliding_against_truth, mpjpe, mpvpe, pa_mpjpe, w_mpjpe, wa_mpjpe,
@@ -249,27 +250,6 @@ def _gt_free(result: WorldResult, pred_joints: np.ndarray, pred_feet: np.ndarray
 POOLED_MEANS = ("w_mpjpe", "wa_mpjpe", "mpjpe", "pa_mpjpe", "mpvpe", "accel", "jitter", "fs",
                 "mpjpe_world", "mpvpe_world", "w_mpjpe_track", "wa_mpjpe_track", "accel_world", "fs_gt", "fs_truth")
 """Metrics reported as the mean of their pooled samples."""
-
-
-METRIC_UNITS = {
-    "w_mpjpe": "mm", "wa_mpjpe": "mm", "mpjpe": "mm", "pa_mpjpe": "mm", "mpvpe": "mm", "accel": "m/s^2",
-    "ate": "m", "ids": "switches/sequence", "pck": "%", "jitter": "10 m/s^3", "fs": "mm/frame",
-    "w_mpjpe_track": "mm", "wa_mpjpe_track": "mm", "accel_world": "mm/frame^2", "fs_gt": "mm",
-    "fs_truth": "mm/frame",
-    "mpjpe_world": "mm", "mpvpe_world": "mm", "ate_mean": "m", "ids_total": "switches",
-    "ids_per_cut": "switches/cut", "ids_within_shots": "switches", "pck_005": "%", "coverage": "fraction",
-}
-"""The unit of every number :func:`summarize` reports (the headline keys first, in the paper's order)."""
-
-
-def report_rows(report: dict[str, Any]) -> list[dict[str, Any]]:
-    """A report as table rows ``{"metric", "value", "unit"}``: every number of :data:`METRIC_UNITS`, then
-    how each sequence's ATE was aligned and the switches through each cut, as text."""
-    rows = [{"metric": k, "value": report[k], "unit": unit} for k, unit in METRIC_UNITS.items() if k in report]
-    for key in ("ate_alignment", "ids_at_cuts"):
-        if key in report:
-            rows.append({"metric": key, "value": "; ".join(str(v) for v in report[key]), "unit": ""})
-    return rows
 
 
 def summarize(scores: Sequence[SequenceScores], options: EvaluationOptions) -> dict[str, Any]:

@@ -5,20 +5,23 @@ from __future__ import annotations
 import os
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
 from multithumbs.errors import InputError
 from multithumbs.io import make_output_dir, publish, save_ground_truth
-from multithumbs.synth.scene import SyntheticVideo
-from multithumbs.viz.labels import draw_label
+
+if TYPE_CHECKING:  # the writers import OpenCV and the scene themselves: preparing a folder needs neither
+    from multithumbs.synth.scene import SyntheticVideo
 
 OUTPUT_NAMES = ("video.mp4", "ground_truth.npz", "contact_sheet.png")
 
 
 def write_video(path: str | Path, frames: np.ndarray, fps: float) -> Path:
     """Encode ``frames (T, H, W, 3)`` RGB uint8 as MPEG-4 (atomic rename when complete)."""
+    import cv2
+
     path = Path(path)
     t, h, w, _ = frames.shape
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
@@ -39,6 +42,8 @@ def write_video(path: str | Path, frames: np.ndarray, fps: float) -> Path:
 
 def write_image(path: str | Path, rgb: np.ndarray) -> Path:
     """Write an RGB image (PNG by the suffix) atomically."""
+    import cv2
+
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)
@@ -58,6 +63,10 @@ def contact_sheet(video: SyntheticVideo, per_shot: int = 3, tile_width: int = 32
     Each tile is labelled with its shot and frame; the last frame before a cut and the first after it get
     a red and a blue border so the pair across the cut is easy to find.
     """
+    import cv2
+
+    from multithumbs.viz.labels import draw_label
+
     frames = video.frames
     t, h, w, _ = frames.shape
     scale = tile_width / w

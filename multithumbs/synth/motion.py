@@ -11,6 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from multithumbs.synth.config import MotionConfig  # noqa: F401  (defined there without scipy; re-exported)
+
 # Body +x (left) -> world +y, body +y (up) -> world +z, body +z (forward) -> world +x.
 BODY_TO_WORLD = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
@@ -21,31 +23,6 @@ _SHOULDER = {"left": 15, "right": 16}
 _ELBOW = {"left": 17, "right": 18}
 _SPINE = (2, 5, 8)
 _NECK, _HEAD = 11, 14
-
-
-@dataclass(frozen=True)
-class MotionConfig:
-    """How people move.
-
-    Attributes:
-        walk_speed: mean walking speed (m/s).
-        walk_speed_spread: per-person spread of the walking speed (m/s).
-        stride_length: length of a full gait cycle, two steps (m).
-        turn_rate: maximum turning speed (rad/s).
-        stand_probability: chance that a person pauses at a waypoint instead of walking on.
-        stand_seconds: (min, max) duration of a pause (s).
-        gesture_probability: chance that a pause includes waving or pointing.
-        region: half-extents (x, y) of the floor area people walk in, centred on the origin (m).
-    """
-
-    walk_speed: float = 1.1
-    walk_speed_spread: float = 0.15
-    stride_length: float = 1.35
-    turn_rate: float = np.pi
-    stand_probability: float = 0.35
-    stand_seconds: tuple[float, float] = (0.6, 2.0)
-    gesture_probability: float = 0.5
-    region: tuple[float, float] = (2.0, 1.6)
 
 
 @dataclass(frozen=True)

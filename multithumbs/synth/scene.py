@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -17,107 +17,14 @@ import torch
 from multithumbs.body.model import BodyModel
 from multithumbs.errors import InputError
 from multithumbs.geometry import camera_centre, intrinsics_from_fov, look_at, project_points, world_to_camera
-from multithumbs.synth.motion import (MotionConfig, PersonMotion, motion_to_smpl, simulate_walk, straight_walk,
+# The settings and their JSON form live without torch in multithumbs.synth.config; re-exported here.
+from multithumbs.synth.config import MotionConfig, SceneConfig, config_from_json, config_to_json  # noqa: F401
+from multithumbs.synth.motion import (PersonMotion, motion_to_smpl, simulate_walk, straight_walk,
                                       walk_abreast)
 from multithumbs.synth.render import MeshInstance, Render, render_view
 from multithumbs.synth.room import Room, make_room
 from multithumbs.synth.splice import even_cuts, shot_camera_ids, splice_views
 from multithumbs.types import GroundTruth, WorldResult, pack_mask
-
-
-@dataclass(frozen=True)
-class SceneConfig:
-    """A synthetic multi-shot scene. Every random choice follows from ``seed``.
-
-    Attributes:
-        num_people: people in the scene (1..8).
-        num_shots: shots in the video; shot ``k`` is filmed by camera ``k``.
-        num_frames: frames in the video.
-        seed: seed of every random choice.
-        cut_angle_deg: yaw between consecutive shots' cameras about the scene centre (degrees).
-        moving_cameras: per shot, whether its camera dollies sideways; one bool applies to all shots.
-        image_size: ``(H, W)`` in pixels.
-        fps: frames per second.
-        horizontal_fov_deg: horizontal field of view of every camera (degrees).
-        camera_distance: distance of the cameras from the scene centre (m).
-        camera_height: (min, max) height of the cameras above the floor (m).
-        dolly_speed: sideways speed of a moving camera (m/s).
-        only_in_one_shot: persons (indices) present in one shot only, the shot given: ``((person, shot),)``.
-        dressed_alike: pairs of persons dressed alike: the same neutral-grey uniform, skin, shaven head
-            and build.
-        crossing_pair: two persons whose paths cross at the scene centre at the first cut, or None. When one
-            of them walks in ``abreast_pair``, the other walks against the pair instead and passes that
-            person on the outside (0.6 m beside their line) at the first cut.
-        abreast_pair: two persons walking side by side through the first cut, or None: the same heading and
-            speed on parallel lines ``abreast_spacing`` apart, their midpoint passing just beyond the scene
-            centre at the cut, walking away from the cut's cameras 30 degrees off their mean view direction
-            (20 or 40 where one would hide the other). Both then show the same side of the body under the
-            same light in both boundary frames, so (dressed alike) only where they are tells them apart.
-            Everybody else walks at random but keeps out of their way.
-        abreast_spacing: distance between the lines of ``abreast_pair`` (m).
-        room_size: (width, depth, height) of the room (m).
-        motion: how people move.
-        name: the scene's name in a suite, or "".
-    """
-
-    num_people: int = 3
-    num_shots: int = 2
-    num_frames: int = 120
-    seed: int = 0
-    cut_angle_deg: float = 45.0
-    moving_cameras: bool | tuple[bool, ...] = False
-    image_size: tuple[int, int] = (360, 640)
-    fps: float = 30.0
-    horizontal_fov_deg: float = 62.0
-    camera_distance: float = 3.4
-    camera_height: tuple[float, float] = (1.5, 2.1)
-    dolly_speed: float = 0.3
-    only_in_one_shot: tuple[tuple[int, int], ...] = ()
-    dressed_alike: tuple[tuple[int, int], ...] = ()
-    crossing_pair: tuple[int, int] | None = None
-    abreast_pair: tuple[int, int] | None = None
-    abreast_spacing: float = 1.2
-    room_size: tuple[float, float, float] = (9.0, 8.0, 3.0)
-    motion: MotionConfig = field(default_factory=MotionConfig)
-    name: str = ""
-
-    def __post_init__(self) -> None:
-        if not 1 <= self.num_people <= 8:
-            raise InputError(f"people: need 1 to 8 people, got {self.num_people}")
-        if self.num_shots < 1:
-            raise InputError(f"shots: need at least one shot, got {self.num_shots}")
-        if self.num_frames < 2 * self.num_shots:
-            raise InputError(f"frames: {self.num_frames} frames cannot hold {self.num_shots} shots "
-                             f"(each shot needs at least 2 frames)")
-        if not 0 <= self.cut_angle_deg <= 180:
-            raise InputError(f"cut-angle: must be within [0, 180] degrees, got {self.cut_angle_deg}")
-        h, w = self.image_size
-        if h < 32 or w < 32:
-            raise InputError(f"image size: at least 32x32 pixels, got {h}x{w}")
-        if not self.fps > 0:
-            raise InputError(f"fps: must be positive, got {self.fps}")
-        moving = self.moving_cameras
-        if not isinstance(moving, bool) and len(moving) != self.num_shots:
-            raise InputError(f"moving_cameras: one flag per shot ({self.num_shots}), got {len(moving)}")
-        pairs = [*self.dressed_alike, *[pair for pair in (self.crossing_pair, self.abreast_pair) if pair is not None]]
-        people = [p for pair in pairs for p in pair] + [p for p, _ in self.only_in_one_shot]
-        if any(not 0 <= p < self.num_people for p in people):
-            raise InputError(f"scene {self.name or 'config'}: a person index is out of range for "
-                             f"{self.num_people} people")
-        if any(len(pair) != 2 or pair[0] == pair[1] for pair in pairs):
-            raise InputError(f"scene {self.name or 'config'}: a pair must name two different persons")
-        if self.abreast_pair is not None:
-            if self.crossing_pair is not None and set(self.crossing_pair) == set(self.abreast_pair):
-                raise InputError(f"scene {self.name or 'config'}: the abreast pair cannot also be the crossing pair")
-            if not 0.6 <= self.abreast_spacing <= 3.0:
-                raise InputError(f"abreast_spacing: must be within [0.6, 3.0] m, got {self.abreast_spacing}")
-        if any(not 0 <= s < self.num_shots for _, s in self.only_in_one_shot):
-            raise InputError(f"scene {self.name or 'config'}: a shot index is out of range for "
-                             f"{self.num_shots} shots")
-
-    def camera_is_moving(self, shot: int) -> bool:
-        moving = self.moving_cameras
-        return bool(moving) if isinstance(moving, bool) else bool(moving[shot])
 
 
 # Clothing regions by the SMPL joint that drives a vertex.
@@ -601,29 +508,3 @@ def _observe(joints: np.ndarray, presence: np.ndarray, instance: np.ndarray, K, 
         conf[q] = seen.astype(float)
     keypoints = np.concatenate([uv, conf[..., None]], axis=-1)
     return keypoints, bboxes, visible
-
-
-def config_to_json(config: SceneConfig) -> dict:
-    out = dataclasses.asdict(config)
-    out["motion"] = dataclasses.asdict(config.motion)
-    return out
-
-
-def config_from_json(data: dict) -> SceneConfig:
-    """Inverse of :func:`config_to_json`; missing fields take their defaults, unknown fields are an error."""
-    defaults = config_to_json(SceneConfig())
-    unknown = sorted(set(data) - set(defaults))
-    if unknown:
-        raise InputError(f"scene config: unknown field {unknown[0]!r}")
-    data = {**defaults, **data, "motion": {**defaults["motion"], **data.get("motion", {})}}
-    data["motion"] = MotionConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in data["motion"].items()})
-    for key in ("image_size", "camera_height", "room_size"):
-        data[key] = tuple(data[key])
-    data["only_in_one_shot"] = tuple(tuple(x) for x in data["only_in_one_shot"])
-    data["dressed_alike"] = tuple(tuple(x) for x in data["dressed_alike"])
-    for key in ("crossing_pair", "abreast_pair"):
-        if data[key] is not None:
-            data[key] = tuple(data[key])
-    if isinstance(data["moving_cameras"], list):
-        data["moving_cameras"] = tuple(data["moving_cameras"])
-    return SceneConfig(**data)

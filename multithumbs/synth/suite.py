@@ -9,7 +9,7 @@ in s12 a third person passes them at the cut).
 from __future__ import annotations
 
 from multithumbs.errors import InputError
-from multithumbs.synth.scene import SceneConfig
+from multithumbs.synth.config import SceneConfig
 
 _STANDARD: tuple[SceneConfig, ...] = (
     SceneConfig(name="s01_two_people_20deg", num_people=2, num_shots=2, cut_angle_deg=20, seed=101),

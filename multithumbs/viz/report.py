@@ -18,7 +18,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from multithumbs.metrics.evaluate import report_rows
+from multithumbs.metric_names import report_rows
 
 from multithumbs.types import WorldResult
 

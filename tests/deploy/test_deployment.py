@@ -37,6 +37,6 @@ def test_deploy_run_and_check_artifacts(tmp_path):
         from storage.store import ArtifactStore
 
         stages = {ArtifactStore(store).record(k)["stage"] for k in ArtifactStore(store).keys()}
-        assert stages == {"simulate_inputs", "align", "propagate", "reid", "post"}
+        assert stages == {"simulate_inputs", "align", "propagate", "reid", "post", "evaluate"}
     finally:
         stack.close()

@@ -46,7 +46,7 @@ def test_video_flow_from_pixels_then_from_the_store(prefect, tmp_path, scene_fil
     store = ArtifactStore(tmp_path / "store")
     stages = sorted(store.record(k)["stage"] for k in store.keys())
     assert stages == sorted(["ground_truth", "shots", "perception", "perception", "trajectory", "trajectory", "space",
-                             "align", "propagate", "reid", "post"])
+                             "align", "propagate", "reid", "post", "evaluate"])
     created = {k: store.record(k)["created"] for k in store.keys()}
     again = reconstruct_video(**args)
     assert {k: store.record(k)["created"] for k in store.keys()} == created
