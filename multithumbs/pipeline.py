@@ -43,7 +43,7 @@ from multithumbs.types import CameraTrajectory, PersonTracks, SharedSpace, Shots
 
 
 def boundary_people(before: PersonTracks, after: PersonTracks, body, window: int = 3,
-                    K: np.ndarray | None = None) -> BoundaryPeople:
+                    K: np.ndarray | None = None, appearance_window: int = 15) -> BoundaryPeople:
     """The people around a cut — the last frame of ``before``, the first of ``after`` — posed once.
 
     A person the detector missed at the boundary frame itself is taken from their detection nearest to it
@@ -51,6 +51,7 @@ def boundary_people(before: PersonTracks, after: PersonTracks, body, window: int
     them unaligned; ``track_frame`` records which frame was used. ``K`` ``(2, 3, 3)``: the boundary
     cameras' intrinsics (the shared space's); the estimator's camera-frame roots are re-expressed for them
     (:func:`multithumbs.geometry.reexpress_for_intrinsics`; default: kept as the tracks give them).
+    Appearance: each person's mean descriptor over their ``appearance_window`` detections nearest the cut.
     """
     sides = []
     for tr, last in ((before, True), (after, False)):
@@ -72,6 +73,7 @@ def boundary_people(before: PersonTracks, after: PersonTracks, body, window: int
         "orient_cam": np.zeros((2, p_max, 3)), "pelvis_cam": np.zeros((2, p_max, 3)),
         "keypoints": np.zeros((2, p_max, 24, 3)), "masks": np.zeros((2, p_max, h, w), bool),
     }
+    appearance = []
     for k, (tr, picks) in enumerate(sides):
         if not picks:
             continue
@@ -93,7 +95,14 @@ def boundary_people(before: PersonTracks, after: PersonTracks, body, window: int
         out["keypoints"][k, :n, :, :] = kp[:, :24] if kp.shape[1] >= 24 else 0.0
         for j, (i, fr) in enumerate(picks):
             out["masks"][k, j] = tr.mask(i, fr)
-    return BoundaryPeople(faces=body.faces, **out)
+            # Appearance over the frames next to the cut, as re-identification takes it.
+            seen = np.nonzero(tr.valid[i])[0]
+            near_cut = seen[-appearance_window:] if k == 0 else seen[:appearance_window]
+            appearance.append((k, j, mean_descriptor(tr.appearance[i, near_cut], tr.appearance_valid[i, near_cut])))
+    descriptors = np.zeros((2, p_max, before.appearance.shape[-1]))
+    for k, j, d in appearance:
+        descriptors[k, j] = d
+    return BoundaryPeople(faces=body.faces, appearance=descriptors, **out)
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -137,6 +146,9 @@ def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: Rei
     global_ids[0] = np.arange(tracks[0].num_people)
     next_id = tracks[0].num_people
     last_state: dict[int, tuple] = {}  # gid -> candidate tuple at its last appearance
+    last_shot: dict[int, int] = {}     # gid -> the shot it was last seen in
+    reliable = placement.distance_reliable if placement.distance_reliable is not None \
+        else np.ones(n_shots - 1, bool)
     matchings, before_ids = [], []
     matched = []
     for k in range(n_shots - 1):
@@ -147,6 +159,7 @@ def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: Rei
                 last = frames[-1]
                 last_state[int(global_ids[k][i])] = _candidate(
                     tr, placement.pelvis[k], i, last, frames[-appearance_window:], config.keypoint_confidence)
+                last_shot[int(global_ids[k][i])] = k
         before = sorted(last_state)
         after = []
         for i in range(nxt.num_people):
@@ -160,7 +173,10 @@ def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: Rei
         if rows_b and rows_a:
             stack = lambda rows, j: np.stack([np.asarray(r[j]) for r in rows])
             # Seconds between each observation and the cut: the gate widens with them.
-            cand_b = Candidates(*(stack(rows_b, j) for j in range(4)), gap=(cut_frame - 1 - stack(rows_b, 4)) / fps)
+            # D is known for someone last seen in shot s when every cut from s to this one placed its cameras.
+            known = np.array([bool(reliable[last_shot[g]:k + 1].all()) for g in before])
+            cand_b = Candidates(*(stack(rows_b, j) for j in range(4)), gap=(cut_frame - 1 - stack(rows_b, 4)) / fps,
+                                distance_known=known)
             cand_a = Candidates(*(stack(rows_a, j) for j in range(4)), gap=(stack(rows_a, 4) - cut_frame) / fps)
             matching = match_people(cand_b, cand_a, config)
         else:
@@ -306,6 +322,10 @@ def post_processed_world(shots: Shots, tracks: Sequence[PersonTracks], placement
     return world, out.losses
 
 
+CAMERAS_FROM = ("scene", "people", "none")
+"""Codes of the ``cameras_from_cut{c}`` diagnostic (:attr:`AlignedBoundary.cameras_from`)."""
+
+
 def world_diagnostics(aligned: Sequence[AlignedBoundary], placement: Placement, ids: Identities
                       ) -> dict[str, np.ndarray]:
     """Alignment losses and scales, trajectory scales and re-ID cost matrices, by name."""
@@ -313,6 +333,7 @@ def world_diagnostics(aligned: Sequence[AlignedBoundary], placement: Placement, 
     for c, result in enumerate(aligned):
         diagnostics[f"align_loss_cut{c}"] = result.losses
         diagnostics[f"space_scale_cut{c}"] = np.float64(result.scale)
+        diagnostics[f"cameras_from_cut{c}"] = np.int64(CAMERAS_FROM.index(result.cameras_from))
     diagnostics["trajectory_scales"] = placement.trajectory_scales
     for c, m in enumerate(ids.matchings):
         diagnostics[f"reid_cost_cut{c}"] = m.cost

@@ -33,6 +33,9 @@ class Placement:
         pelvis: per shot ``(P_s, T_s, 3)`` world pelvis positions.
         trajectory_scales: ``(S,)`` metric scale found for each shot's tracking (nan: none found, 1 used).
         space_to_world: per cut ``(4, 4)`` similarity matrix from the cut's metric shared space to the world.
+        distance_reliable: ``(C,)`` bool, the cut's boundary cameras came from the scene or the people
+            (``AlignedBoundary.cameras_from`` not ``"none"``): root distances across it mean something.
+            None: all (placements stored before this field).
     """
 
     R: np.ndarray
@@ -43,6 +46,7 @@ class Placement:
     pelvis: tuple[np.ndarray, ...]
     trajectory_scales: np.ndarray
     space_to_world: np.ndarray
+    distance_reliable: np.ndarray | None = None
 
 
 def _sim_matrix(sim: Similarity) -> np.ndarray:
@@ -127,7 +131,10 @@ def propagate(shots: Shots, tracks: Sequence[PersonTracks], trajectories: Sequen
         orients.append(orient_k)
         pelvises.append(pelvis_k)
         transls.append(pelvis_k - pelvis_rest[:, None])
-    return Placement(R_all, t_all, K_all, tuple(orients), tuple(transls), tuple(pelvises), scales, space_to_world)
+    reliable = np.array([a.cameras_from != "none" for a in aligned], bool) if not independent \
+        else np.zeros(shots.num_shots - 1, bool)
+    return Placement(R_all, t_all, K_all, tuple(orients), tuple(transls), tuple(pelvises), scales, space_to_world,
+                     reliable)
 
 
 def _camera_in_world(R: np.ndarray, t: np.ndarray, space_to_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -45,6 +45,7 @@ from multithumbs.determinism import fix_threads
 from multithumbs.geometry import axis_angle_to_matrix, matrix_to_axis_angle, project, vertex_normals
 from multithumbs.method.align_objective import _Problem
 from multithumbs.method.config import AlignConfig  # noqa: F401  (defined there without torch; re-exported)
+from multithumbs.method.people_cameras import cameras_from_people
 from multithumbs.method.scale import depth_ratio_scale, mesh_to_points_scale
 from multithumbs.method.views import register_views
 from multithumbs.types import SharedSpace
@@ -66,6 +67,8 @@ class BoundaryPeople:
         keypoints: ``(2, P, 24, 3)`` 2D keypoints with confidence.
         masks: ``(2, P, H, W)`` bool.
         faces: ``(F, 3)`` the body mesh's faces.
+        appearance: ``(2, P, D)`` appearance descriptors near the cut (:mod:`multithumbs.appearance`), or
+            None; the people-based cameras use them to tell who is who across a reverse cut.
     """
 
     present: np.ndarray
@@ -78,6 +81,7 @@ class BoundaryPeople:
     keypoints: np.ndarray
     masks: np.ndarray
     faces: np.ndarray
+    appearance: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -98,6 +102,11 @@ class AlignedBoundary:
         point_valid: ``(2, H, W)`` bool.
         losses: ``(N,)`` total loss per iteration over stages 2 and 3.
         method: which path ran: ``"three_stage"``, ``"joint"``, ``"no_align"``.
+        cameras_from: where the boundary cameras came from: ``"scene"`` (the shared space), ``"people"``
+            (:mod:`multithumbs.method.people_cameras`, the space having fallen back) or ``"none"`` (the space
+            fell back and no person was seen on both sides: the cameras, and root distances across the
+            cut, mean nothing).
+        people_pairs: ``(M, 2)`` the boundary people (side-0, side-1 index) the people-based cameras matched.
     """
 
     cut_frame: int
@@ -113,6 +122,8 @@ class AlignedBoundary:
     losses: np.ndarray = field(default_factory=lambda: np.zeros(0))
     method: str = "three_stage"
     track_frame: np.ndarray | None = None
+    cameras_from: str = "scene"
+    people_pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
 
 
 def point_maps(space: SharedSpace, max_gap: float = 2.5) -> tuple[np.ndarray, np.ndarray]:
@@ -286,6 +297,23 @@ def _align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignCon
     s = scale if np.isfinite(scale) and scale > 0 else 1.0
     maps = maps * s
     R0, t0 = space.R.astype(np.float64), space.t.astype(np.float64) * s
+    cameras_from, people_pairs = "scene", np.zeros((0, 2), np.int64)
+    fell_back = bool(space.fallback) or not valid.any()
+    if config.people_cameras not in ("fallback", "always", "never"):
+        raise ValueError(f"people_cameras {config.people_cameras!r}: use 'fallback', 'always' or 'never'")
+    if config.people_cameras == "always" or (config.people_cameras == "fallback" and fell_back):
+        pelvis = fitted if fitted is not None else keypoint_fitted_pelvis(people, space.K, config.keypoint_confidence)
+        found = cameras_from_people(people, pelvis, space.K, config.keypoint_confidence,
+                                    w_appearance=config.people_w_appearance,
+                                    unmatched_cost=config.people_unmatched_cost)
+        if found.found:  # the people's metric frame: camera 0 is the world, the space's points are not used
+            R0, t0, cameras_from, people_pairs = found.R, found.t, "people", found.pairs
+            valid = np.zeros_like(valid)
+            single_view = np.zeros_like(single_view)
+        elif fell_back:
+            cameras_from = "none"
+    elif fell_back:
+        cameras_from = "none"
     follow = single_view & valid if config.points_follow_cameras else np.zeros_like(valid)
     if not skip and config.refine_cameras and config.register_views and follow.any():
         point_cam = np.einsum("kij,khwj->khwi", R0, maps) + t0[:, None, None]
@@ -297,9 +325,13 @@ def _align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignCon
             maps[1] = np.where(follow[1][..., None], moved, maps[1])
             R0, t0 = registration.R, registration.t
     orient, pelvis = _camera_frame_roots(people, R0, t0)
+    if cameras_from == "people":  # the matched people start from their roots triangulated by both views
+        for (i, j), (rot, root) in zip(people_pairs, found.roots):
+            orient[0, i], pelvis[0, i] = rot, root
+            orient[1, j], pelvis[1, j] = rot, root
     common = dict(cut_frame=space.cut_frame, present=people.present, track_index=people.track_index,
                   track_frame=people.track_frame, scale=scale,
-                  point_map=maps, point_valid=valid)
+                  point_map=maps, point_valid=valid, cameras_from=cameras_from, people_pairs=people_pairs)
     if skip:
         return AlignedBoundary(R=R0, t=t0, orient=orient, pelvis=pelvis, method="no_align", **common)
     if config.staged:

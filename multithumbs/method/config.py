@@ -56,6 +56,13 @@ class AlignConfig:
         view_samples: background points sampled per frame for that registration.
         view_robust_scale: its Cauchy scale and occlusion margin (m).
         view_smoothing_px: smoothing of the depth maps it compares with (pixels).
+        people_cameras: when the boundary cameras come from the people seen on both sides of the cut
+            (:mod:`multithumbs.method.people_cameras`): ``"fallback"`` (default: when the shared space fell
+            back, having found nothing to register the two frames by), ``"always"`` or ``"never"``.
+        people_w_appearance: weight of the appearance dissimilarity in choosing who is who there.
+        people_unmatched_cost: cost of leaving a person unmatched there (a matched pair costs its
+            reprojection error in units of 5 % of the person's size, its orientation's disagreement in units
+            of 10 degrees and its weighted appearance dissimilarity).
         w_camera_prior: weight of ``‖ω‖² + ‖C − C₀‖²`` (rad², m²) keeping stage 3's cameras near their
             registered poses: with points that follow their cameras, the people's losses leave a gauge
             (camera, its points and its people moving together) that this fixes.
@@ -83,6 +90,9 @@ class AlignConfig:
     view_robust_scale: float = 0.3
     view_smoothing_px: float = 3.0
     w_camera_prior: float = 1e-3
+    people_cameras: str = "fallback"
+    people_w_appearance: float = 2.0
+    people_unmatched_cost: float = 2.5
 
 
 @dataclass(frozen=True)

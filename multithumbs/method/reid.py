@@ -1,6 +1,8 @@
 """Cross-shot re-identification (paper §3.4): U = λgeo·D + λapp·A + λpos·P, Hungarian, reject D > τ.
 
-D is the distance between root positions in the shared world frame, A the appearance dissimilarity
+D is the distance between root positions in the shared world frame (where the cameras of a cut mean
+nothing, a shared space that fell back with nobody seen on both sides, D neither costs nor gates:
+:attr:`Candidates.distance_known`), A the appearance dissimilarity
 over regions valid in both (:mod:`multithumbs.appearance`), P the pose dissimilarity: the mean geodesic
 angle between SMPL joint rotations, over joints whose 2D keypoints are confident in both frames.
 """
@@ -27,6 +29,9 @@ class Candidates:
         body_pose: ``(N, 23, 3)`` axis-angle body pose near the cut.
         joint_visible: ``(N, 23)`` bool, the body joint (SMPL joints 1..23) was visible.
         gap: ``(N,)`` seconds between the observation and the cut (0 at the boundary frame).
+        distance_known: ``(N,)`` bool, the root's distance to the other side means something (every cut
+            between its observation and the other side's has cameras from the scene or the people); where
+            False, D neither costs nor gates and appearance and pose alone decide. None: all known.
     """
 
     root: np.ndarray
@@ -34,6 +39,7 @@ class Candidates:
     body_pose: np.ndarray
     joint_visible: np.ndarray
     gap: np.ndarray | None = None
+    distance_known: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -83,11 +89,15 @@ def match_people(before: Candidates, after: Candidates, config: ReidConfig = Rei
     distance = np.linalg.norm(before.root[:, None] - after.root[None], axis=-1)
     appearance = appearance_dissimilarity(before.appearance[:, None], after.appearance[None])
     pose = pose_dissimilarity(before.body_pose, after.body_pose, before.joint_visible, after.joint_visible)
-    cost = config.w_geo * distance + config.w_app * appearance + config.w_pose * pose
+    known = np.ones((n_a, n_b), bool)
+    for side, axis in ((before, (slice(None), None)), (after, (None, slice(None)))):
+        if side.distance_known is not None:
+            known &= np.asarray(side.distance_known, bool)[axis]
+    cost = config.w_geo * np.where(known, distance, 0.0) + config.w_app * appearance + config.w_pose * pose
     rows, cols = linear_sum_assignment(cost)
     gap_a = before.gap if before.gap is not None else np.zeros(n_a)
     gap_b = after.gap if after.gap is not None else np.zeros(n_b)
     gate = config.max_distance + config.max_speed * (gap_a[:, None] + gap_b[None])
-    keep = distance[rows, cols] <= gate[rows, cols]
+    keep = (distance[rows, cols] <= gate[rows, cols]) | ~known[rows, cols]
     pairs = np.stack([rows[keep], cols[keep]], axis=1).astype(np.int64)
     return Matching(pairs, cost, distance, appearance, pose)

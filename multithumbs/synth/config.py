@@ -57,6 +57,12 @@ class SceneConfig:
         camera_height: (min, max) height of the cameras above the floor (m).
         dolly_speed: sideways speed of a moving camera (m/s).
         only_in_one_shot: persons (indices) present in one shot only, the shot given: ``((person, shot),)``.
+        absent_in_shots: persons (indices) out of the scene during one shot: ``((person, shot),)``. With
+            ``((0, 1),)`` person 0 is seen in shots 0 and 2 and not in shot 1 (A-B-A).
+        dialogue: a conversation cut as shot/reverse-shot (:mod:`multithumbs.synth.dialogue`): people stand
+            in a group facing each other; the shots alternate between two cameras ``cut_angle_deg`` apart
+            about the group's centre, ``camera_distance`` from it, each over the shoulder of the person on
+            its side (who is near it, partly out of frame, seen from behind) and aimed at the others.
         dressed_alike: pairs of persons dressed alike: the same neutral-grey uniform, skin, shaven head
             and build.
         crossing_pair: two persons whose paths cross at the scene centre at the first cut, or None. When one
@@ -87,6 +93,8 @@ class SceneConfig:
     camera_height: tuple[float, float] = (1.5, 2.1)
     dolly_speed: float = 0.3
     only_in_one_shot: tuple[tuple[int, int], ...] = ()
+    absent_in_shots: tuple[tuple[int, int], ...] = ()
+    dialogue: bool = False
     dressed_alike: tuple[tuple[int, int], ...] = ()
     crossing_pair: tuple[int, int] | None = None
     abreast_pair: tuple[int, int] | None = None
@@ -114,7 +122,7 @@ class SceneConfig:
         if not isinstance(moving, bool) and len(moving) != self.num_shots:
             raise InputError(f"moving_cameras: one flag per shot ({self.num_shots}), got {len(moving)}")
         pairs = [*self.dressed_alike, *[pair for pair in (self.crossing_pair, self.abreast_pair) if pair is not None]]
-        people = [p for pair in pairs for p in pair] + [p for p, _ in self.only_in_one_shot]
+        people = [p for pair in pairs for p in pair] + [p for p, _ in (*self.only_in_one_shot, *self.absent_in_shots)]
         if any(not 0 <= p < self.num_people for p in people):
             raise InputError(f"scene {self.name or 'config'}: a person index is out of range for "
                              f"{self.num_people} people")
@@ -125,9 +133,12 @@ class SceneConfig:
                 raise InputError(f"scene {self.name or 'config'}: the abreast pair cannot also be the crossing pair")
             if not 0.6 <= self.abreast_spacing <= 3.0:
                 raise InputError(f"abreast_spacing: must be within [0.6, 3.0] m, got {self.abreast_spacing}")
-        if any(not 0 <= s < self.num_shots for _, s in self.only_in_one_shot):
+        if any(not 0 <= s < self.num_shots for _, s in (*self.only_in_one_shot, *self.absent_in_shots)):
             raise InputError(f"scene {self.name or 'config'}: a shot index is out of range for "
                              f"{self.num_shots} shots")
+        if self.dialogue and (not 2 <= self.num_people <= 4 or self.crossing_pair is not None or self.abreast_pair is not None):
+            raise InputError(f"scene {self.name or 'config'}: a dialogue holds 2 to 4 standing people "
+                             f"(no crossing or abreast pair)")
 
     def camera_is_moving(self, shot: int) -> bool:
         moving = self.moving_cameras
@@ -151,6 +162,7 @@ def config_from_json(data: dict) -> SceneConfig:
     for key in ("image_size", "camera_height", "room_size"):
         data[key] = tuple(data[key])
     data["only_in_one_shot"] = tuple(tuple(x) for x in data["only_in_one_shot"])
+    data["absent_in_shots"] = tuple(tuple(x) for x in data["absent_in_shots"])
     data["dressed_alike"] = tuple(tuple(x) for x in data["dressed_alike"])
     for key in ("crossing_pair", "abreast_pair"):
         if data[key] is not None:

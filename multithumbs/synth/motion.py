@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 from scipy.spatial.transform import Rotation
 
 from multithumbs.synth.config import MotionConfig  # noqa: F401  (defined there without scipy; re-exported)
@@ -213,3 +214,32 @@ def motion_to_smpl(motion: PersonMotion) -> tuple[np.ndarray, np.ndarray]:
     global_orient = Rotation.from_matrix(heading_rot @ BODY_TO_WORLD).as_rotvec()
     body_pose = Rotation.from_matrix(pose.reshape(-1, 3, 3)).as_rotvec().reshape(t_count, 23, 3)
     return global_orient, body_pose
+
+
+def stand_and_talk(position: np.ndarray, facing: np.ndarray, num_frames: int, fps: float,
+                   rng: np.random.Generator, config: MotionConfig = MotionConfig()) -> PersonMotion:
+    """A person standing in a conversation: in place at ``position (2,)``, turned towards ``facing (2,)``.
+
+    The body sways a few centimetres and turns slowly by up to ~10 degrees (smoothed noise); now and then a
+    gesture (waving or pointing, ``config.stand_seconds`` long) accompanies speech, with probability
+    ``config.gesture_probability`` per pause-length window. Legs stay still (no gait).
+    """
+    t_axis = np.arange(num_frames) / fps
+    smooth = max(1.0, 0.8 * fps)  # motion correlated over ~0.8 s
+    sway = gaussian_filter1d(rng.standard_normal((num_frames, 3)), smooth, axis=0, mode="nearest")
+    sway /= max(float(sway.std()), 1e-9)
+    to_face = np.asarray(facing, float) - np.asarray(position, float)
+    heading = float(np.arctan2(to_face[1], to_face[0])) + np.deg2rad(5.0) * sway[:, 2]
+    pos = np.asarray(position, float)[None] + 0.02 * sway[:, :2]
+    gesture = np.zeros(num_frames, np.int64)
+    gesture_phase = np.zeros(num_frames)
+    start = float(rng.uniform(0, config.stand_seconds[1]))
+    while start < t_axis[-1]:
+        length = float(rng.uniform(*config.stand_seconds))
+        if rng.random() < config.gesture_probability:
+            inside = (t_axis >= start) & (t_axis < start + length)
+            gesture[inside] = int(rng.integers(1, 3))
+            gesture_phase[inside] = t_axis[inside] - start
+        start += length + float(rng.uniform(*config.stand_seconds))
+    zeros = np.zeros(num_frames)
+    return PersonMotion(pos, heading, rng.uniform(0, 2 * np.pi) + zeros, zeros.copy(), gesture, gesture_phase)

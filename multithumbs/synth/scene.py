@@ -185,22 +185,29 @@ def build_scene(config: SceneConfig) -> Scene:
     """Decide room, people, motion, clothing, cameras and cuts of a scene from its config."""
     rng = np.random.default_rng([config.seed, 0])
     cuts = scene_cuts(config)
-    cameras = _make_cameras(config, rng)
-    centres = camera_centre(cameras.R, cameras.t)
-    room = make_room(config.seed, *config.room_size)
-    room = _clear_around(room, centres.reshape(-1, 3))
-
     presence = np.ones((config.num_people, config.num_frames), bool)
     edges = [0, *cuts.tolist(), config.num_frames]
     for person, shot in config.only_in_one_shot:
         presence[person] = False
         presence[person, edges[shot]:edges[shot + 1]] = True
+    for person, shot in config.absent_in_shots:
+        presence[person, edges[shot]:edges[shot + 1]] = False
+    if config.dialogue:
+        from multithumbs.synth.dialogue import dialogue_layout
+
+        K, R, t, dialogue_motions = dialogue_layout(config, rng, presence)
+        cameras = CameraRig(K, R, t)
+    else:
+        cameras = _make_cameras(config, rng)
+    centres = camera_centre(cameras.R, cameras.t)
+    room = make_room(config.seed, *config.room_size)
+    room = _clear_around(room, centres.reshape(-1, 3))
     crossing = config.crossing_pair
     # The abreast pair (and whoever passes them) is scripted from a random stream of its own; everybody
     # else walks at random as usual, but keeps out of their way (see _walk_clear_of).
     scripted = _abreast_motions(config, cuts, cameras) if config.abreast_pair is not None else {}
-    motions = []
-    for p in range(config.num_people):
+    motions = list(dialogue_motions) if config.dialogue else []
+    for p in range(len(motions), config.num_people):
         if p in scripted:
             motions.append(scripted[p])
         elif crossing is not None and p in crossing:

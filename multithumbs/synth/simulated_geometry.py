@@ -31,6 +31,10 @@ class SharedSpaceNoise:
         translation_sigma: camera centre error relative to the scene depth (std).
         scale_range: the space's unknown scale is drawn log-uniformly in this range.
         stride: keep every ``stride``-th pixel in each direction of the dense point maps.
+        min_shared_background: below this share of the room seen by both boundary frames
+            (:func:`shared_background`) there is nothing to register the frames by, and the space is a
+            fallback without points or cameras, as the pixel backends give (a reverse shot that sees the
+            other side of the room).
     """
 
     depth_sigma: float = 0.01
@@ -38,6 +42,37 @@ class SharedSpaceNoise:
     translation_sigma: float = 0.01
     scale_range: tuple[float, float] = (0.3, 3.0)
     stride: int = 2
+    min_shared_background: float = 0.05
+
+
+def shared_background(video: SyntheticVideo, cut_index: int, stride: int = 4, tolerance: float = 0.03) -> float:
+    """The share of the room that both boundary frames of a cut see: for each frame, the fraction of its room
+    pixels (every ``stride``-th) whose true point the other frame also sees (in its image, at its depth
+    within ``tolerance``, not on a person); the smaller of the two."""
+    world = video.truth.world
+    cut = int(world.cut_frames[cut_index])
+    frames = (cut - 1, cut)
+    h, w = world.image_size
+    vs, us = np.mgrid[0:h:stride, 0:w:stride]
+    shares = []
+    for k, f in enumerate(frames):
+        g = frames[1 - k]
+        depth = video.boundary_depth[cut_index, k][vs, us].ravel().astype(float)
+        room = np.isfinite(depth) & (video.instance[f][vs, us].ravel() < 0)
+        if not room.any():
+            return 0.0
+        pix = np.stack([us.ravel(), vs.ravel()], axis=1)[room].astype(float)
+        world_pts = (unproject(pix, depth[room], world.K[f]) - world.t[f]) @ world.R[f]
+        cam = world_pts @ world.R[g].T + world.t[g]
+        z = cam[:, 2]
+        uv = cam[:, :2] / np.maximum(z, 1e-9)[:, None] * world.K[g][[0, 1], [0, 1]] + world.K[g][:2, 2]
+        ui, vi = np.round(uv[:, 0]).astype(int), np.round(uv[:, 1]).astype(int)
+        seen = (z > 1e-6) & (ui >= 0) & (ui < w) & (vi >= 0) & (vi < h)
+        other = video.boundary_depth[cut_index, 1 - k]
+        seen[seen] &= (np.abs(other[vi[seen], ui[seen]] - z[seen]) < tolerance * z[seen]) & \
+            (video.instance[g][vi[seen], ui[seen]] < 0)
+        shares.append(float(seen.mean()))
+    return min(shares)
 
 
 def _random_similarity(rng: np.random.Generator, scale_range: tuple[float, float]) -> Similarity:
@@ -53,6 +88,12 @@ def simulate_shared_space(video: SyntheticVideo, cut_index: int, noise: SharedSp
     rng = np.random.default_rng([video.scene.config.seed, seed, cut, 11])
     h, w = world.image_size
     frames = (cut - 1, cut)
+    share = shared_background(video, cut_index)
+    if share < noise.min_shared_background:
+        return SharedSpace(cut_frame=cut, K=world.K[list(frames)], R=np.stack([np.eye(3)] * 2), t=np.zeros((2, 3)),
+                           points=np.zeros((0, 3)), pixels=np.zeros((2, 0, 2)), observed=np.zeros((2, 0), bool),
+                           confidence=np.zeros(0), image_size=(h, w), source="simulated",
+                           fallback=f"no shared background ({100 * share:.1f}% of the room in both frames)")
     vs, us = np.mgrid[0:h:noise.stride, 0:w:noise.stride]
     pix = np.stack([us.ravel(), vs.ravel()], axis=1).astype(float)
     points, pixels, observed, conf = [], [], [], []

@@ -1,4 +1,5 @@
-"""Named suites of synthetic scenes. ``standard`` is the benchmark every issue reports on.
+"""Named suites of synthetic scenes. ``standard`` is the benchmark every issue reports on; ``dialogue`` is
+shot/reverse-shot conversations with cuts of 120-180 degrees (:mod:`multithumbs.synth.dialogue`).
 
 The standard suite covers 2-4 people, 2-3 shots, cut angles from 20 to 90 degrees, static and moving
 cameras, a person present in one shot only, people crossing paths at a cut, and two people dressed alike who
@@ -33,7 +34,19 @@ _STANDARD: tuple[SceneConfig, ...] = (
                 dressed_alike=((0, 1),), abreast_pair=(0, 1), crossing_pair=(1, 2)),
 )
 
-SUITES: dict[str, tuple[SceneConfig, ...]] = {"standard": _STANDARD}
+# Dialogue: shot/reverse-shot, over the shoulder (the near person seen from behind, cut by the frame's edge),
+# the boundary frames sharing no background. d04: person 0 leaves for shot 1 and is back in shot 2 (A-B-A).
+_DIALOGUE_VIEW = dict(dialogue=True, camera_distance=2.0, camera_height=(1.45, 1.65))
+_DIALOGUE: tuple[SceneConfig, ...] = (
+    SceneConfig(name="d01_dialogue_120deg", num_people=2, num_shots=2, cut_angle_deg=120, seed=201, **_DIALOGUE_VIEW),
+    SceneConfig(name="d02_dialogue_150deg_three", num_people=3, num_shots=2, cut_angle_deg=150, seed=202,
+                **_DIALOGUE_VIEW),
+    SceneConfig(name="d03_dialogue_180deg", num_people=2, num_shots=3, cut_angle_deg=180, seed=203, **_DIALOGUE_VIEW),
+    SceneConfig(name="d04_dialogue_180deg_return", num_people=3, num_shots=3, cut_angle_deg=180, seed=204,
+                absent_in_shots=((0, 1),), **_DIALOGUE_VIEW),
+)
+
+SUITES: dict[str, tuple[SceneConfig, ...]] = {"standard": _STANDARD, "dialogue": _DIALOGUE}
 
 
 def suite(name: str) -> tuple[SceneConfig, ...]:
