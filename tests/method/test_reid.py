@@ -59,3 +59,22 @@ def test_pose_dissimilarity_counts_only_joints_visible_in_both():
     vis_not5[0, 5] = False
     np.testing.assert_allclose(pose_dissimilarity(a, b, vis_all, vis_all), [[0.5 / 23]])
     np.testing.assert_allclose(pose_dissimilarity(a, b, vis_all, vis_not5), [[0.0]])
+
+
+def test_an_unknown_distance_neither_costs_nor_gates():
+    # Across a cut whose cameras mean nothing (the space fell back, nobody seen on both sides), the roots
+    # are placed in unrelated frames: D would match by where the cameras happen to be and reject real pairs.
+    import dataclasses
+
+    rng = np.random.default_rng(3)
+    before = _people([[0, 0, 0], [1.0, 0, 0]], [0, 12], rng)
+    # Each reappears near where the other was (the two sides' frames are unrelated): D swaps them.
+    after = Candidates(np.array([[1.2, 0, 0], [0.0, 0, 0]]), before.appearance, before.body_pose,
+                       before.joint_visible)
+    assert match_people(before, after).pairs.tolist() == [[0, 1], [1, 0]]
+    unknown = dataclasses.replace(before, distance_known=np.array([False, False]))
+    assert match_people(unknown, after).pairs.tolist() == [[0, 0], [1, 1]]  # appearance and pose decide
+    # The gate: someone 5 m from where they were is someone else only when the distance means something.
+    one, far = _people([[0, 0, 0]], [0], rng), _people([[5.0, 0, 0]], [0], rng)
+    assert match_people(one, far).pairs.shape == (0, 2)
+    assert match_people(dataclasses.replace(one, distance_known=np.array([False])), far).pairs.tolist() == [[0, 0]]
