@@ -91,7 +91,7 @@ class FocalConfig:
     min_parallax: float = 8.0
     init_fovs_deg: tuple[float, ...] = (35.0, 60.0, 90.0)
     profile_steps: int = 24
-    min_profile_rise: float = 0.05
+    min_profile_rise: float = 0.12
     rotation_ratio: float = 0.9
     min_rotation_deg: float = 3.0
     min_heights: int = 20
@@ -99,7 +99,14 @@ class FocalConfig:
     fov_range_deg: tuple[float, float] = (15.0, 120.0)
 
 
+def given_focal(K: np.ndarray) -> FocalEstimate:
+    """The estimate of intrinsics a user gave: ``sqrt(fx fy)``."""
+    K = np.asarray(K, np.float64)
+    return FocalEstimate(float(np.sqrt(K[0, 0] * K[1, 1])), "given")
+
+
 def focal_from_fov(width: int, horizontal_fov_deg: float) -> float:
+    """Focal length (pixels) of a ``width``-pixel image with that horizontal field of view."""
     return 0.5 * width / np.tan(np.deg2rad(horizontal_fov_deg) / 2)
 
 
@@ -178,6 +185,7 @@ def bundle_profile(xy: np.ndarray, image_size: tuple[int, int], focals: Sequence
     Returns:
         ``(F,)`` RMS per focal length (inf where the start failed).
     """
+    cv2.setRNGSeed(0)  # RANSAC: the same tracks give the same profile (artifact keys mean the same bytes)
     xy = np.asarray(xy, np.float64)
     if xy.ndim != 3 or xy.shape[0] < 3 or xy.shape[2] != 2 or xy.shape[1] < 12:
         raise InputError(f"bundle_profile: expected (V>=3, N>=12, 2) keyframe tracks, got {xy.shape}")
@@ -264,6 +272,7 @@ def focal_from_motion(frames: np.ndarray, masks: np.ndarray | None = None, confi
     xy, why = _keyframe_tracks(frames, masks, config)
     if xy is None:
         return None, why
+    cv2.setRNGSeed(0)
     F, f_inl = cv2.findFundamentalMat(xy[0], xy[-1], cv2.FM_RANSAC, 1.0, 0.999)
     H, h_inl = cv2.findHomography(xy[0], xy[-1], cv2.RANSAC, 1.0)
     if H is not None and (F is None or h_inl.sum() >= config.rotation_ratio * f_inl.sum()):
@@ -428,7 +437,7 @@ def focal_from_learned(space) -> FocalEstimate:
 
 def estimate_focal(frames: np.ndarray, ranges: Sequence[tuple[int, int]], masks: np.ndarray | None = None,
                    tracks: Sequence | None = None, learned: Callable[[np.ndarray, np.ndarray], object] | None = None,
-                   config: FocalConfig = FocalConfig()) -> FocalEstimate:
+                   config: FocalConfig = FocalConfig(), motion: tuple | None = None) -> FocalEstimate:
     """The video's focal length from the best source that gives one (module docstring).
 
     Args:
@@ -438,12 +447,13 @@ def estimate_focal(frames: np.ndarray, ranges: Sequence[tuple[int, int]], masks:
         tracks: per shot :class:`~multithumbs.types.PersonTracks` for the heights estimate, or None (skipped).
         learned: ``(frame_a, frame_b) -> SharedSpace`` of a loaded learned model (e.g.
             ``functools.partial(vggt_shared_space, model, cut_frame=0)``), or None.
+        motion: :func:`motion_estimate`'s answer when already computed (perception runs between the two).
     """
     frames = np.asarray(frames)
     if frames.ndim != 4 or frames.shape[-1] != 3 or frames.dtype != np.uint8:
         raise InputError(f"frames: expected (T, H, W, 3) uint8 RGB, got {frames.shape} {frames.dtype}")
     h, w = frames.shape[1:3]
-    estimate, why = motion_estimate(frames, ranges, masks, config)
+    estimate, why = motion if motion is not None else motion_estimate(frames, ranges, masks, config)
     if estimate is not None:
         return estimate
     reasons = [f"moving camera: {why}"]
