@@ -91,7 +91,7 @@ class FocalConfig:
     min_parallax: float = 8.0
     init_fovs_deg: tuple[float, ...] = (35.0, 60.0, 90.0)
     profile_steps: int = 24
-    min_profile_rise: float = 0.12
+    min_profile_rise: float = 0.15
     rotation_ratio: float = 0.9
     min_rotation_deg: float = 3.0
     min_heights: int = 20
