@@ -14,8 +14,8 @@ from prefect.task_runners import ThreadPoolTaskRunner
 from flows.method import run_method, space_refs
 from flows.reconstruct import publish_outputs
 from tasks.evaluation import evaluate_result
-from tasks.inputs import (detect_video_shots, given_shots, import_ground_truth, perceive_people, shared_space, spec_fingerprint,
-                          track_shot_camera)
+from tasks.inputs import (detect_video_shots, estimate_video_focal, given_shots, import_ground_truth, perceive_people,
+                          shared_space, spec_fingerprint, track_shot_camera)
 from tasks.method import method_params
 
 
@@ -45,7 +45,8 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
         video: the video file. out_dir: output folder. store_url: artifact store (local path or fsspec URL).
         perception: perception spec (:func:`multithumbs.perception.load_perception`), e.g. ``phalp:RESULTS.pkl``.
         trust_pickle: allow loading pickled results (they run code when loaded).
-        intrinsics: ``[fx, fy, cx, cy]`` of the video's camera; default: a 60° horizontal field of view guess.
+        intrinsics: ``[fx, fy, cx, cy]`` of the video's camera; default: estimated from the pixels (the stage
+            ``focal``: a moving camera, else people's heights, else a 60° horizontal field of view guess).
         variant, method: method variant and parameter overrides (:func:`tasks.method.method_config`).
         truth: optional ground-truth ``.npz`` to score against.
         shots, tracking, two_view: overrides of :class:`~multithumbs.scene.shots.ShotConfig`,
@@ -55,7 +56,11 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
         smpl_model: the SMPL file (.npz or .pkl) every stage poses people with; default
             ``$MULTITHUMBS_SMPL_MODEL``, else the procedural body (:func:`tasks.body.resolve_body`).
     """
+    import numpy as np
+
+    from multithumbs.scene.focal import FocalConfig, given_focal
     from multithumbs.scene.shots import ShotConfig
+    from tasks.artifacts import load
     from multithumbs.scene.tracking import TrackingConfig
     from multithumbs.scene.two_view import TwoViewConfig
     from multithumbs.video import probe_video
@@ -83,10 +88,25 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
         shots_ref = detect_video_shots(store_url, {}, {"video": digest,
                                                        "config": dataclasses.asdict(ShotConfig(**(shots or {})))}, video)
     lap("shot detection")
+    focal_params = {"video": digest, "config": dataclasses.asdict(FocalConfig())}
+    motion_ref = None
+    if intrinsics is None:  # the focal length from the pixels; perception needs a K first (multithumbs.scene.focal)
+        motion_ref = estimate_video_focal(store_url, {"shots": shots_ref}, focal_params, video)
+        motion = load(motion_ref)
+        if motion.source != "none":
+            K = motion.K(info.width, info.height).tolist()
+        lap("focal length")
     tracks = perceive_people(store_url, {"shots": shots_ref},
                              {"video": digest, "spec": spec_fingerprint(perception), "trust": trust_pickle, "K": K,
                               **body}, video, perception, body_path, device)
     lap("perception")
+    if motion_ref is None:
+        focal = given_focal(np.asarray(K))
+    else:
+        focal = load(estimate_video_focal(store_url, {"shots": shots_ref, "motion": motion_ref,
+                                                      **{f"tracks_{k}": r for k, r in enumerate(tracks)}},
+                                          focal_params, video))
+        K = focal.K(info.width, info.height).tolist()  # the tracks keep theirs: the method re-expresses them
     tracking_config = dataclasses.asdict(TrackingConfig(**(tracking or {})))
     trajectories = [f.result() for f in [
         track_shot_camera.submit(store_url, {"shots": shots_ref, "tracks": tracks[k]},
@@ -108,15 +128,17 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
     truth_ref = truth_future.result() if truth_future else None
     metrics = evaluate_result(method_refs["result"], truth_ref, body_path) if truth_ref else None
     lap("evaluation")
-    backends = _backends(store_url, shots_ref, trajectories, spaces, perception)
+    backends = {**_backends(store_url, shots_ref, trajectories, spaces, perception), "focal length": focal.line()}
     files = publish_outputs(out_dir, Path(video).stem, variant, video, method_refs, space_refs(inputs), truth_ref,
                             metrics, {"backends": backends, "timings": timings, "variant": variant,
-                                      "fallbacks": _fallbacks(spaces), "body_model": body_path or "procedural"},
+                                      "fallbacks": _fallbacks(spaces), "body_model": body_path or "procedural",
+                                      "focal": focal.to_json()},
                             body_path)
     from multithumbs.viz.report import people_by_shot
     from tasks.artifacts import load
 
     return {"metrics": metrics, "files": files, "num_shots": len(tracks), "backends": backends, "timings": timings,
+            "focal": focal.to_json(),
             "people": people_by_shot(load(method_refs["result"]))}
 
 

@@ -72,20 +72,23 @@ writes its results and read back as ``multithumbs run --perception phalp:`` read
 frame names, ghosts, confirmation, HMR2-camera ``2d_joints`` reprojected, appearance from the pixels)."""
 
 
-INPUT_SOURCES = ("simulated", "pixels")
+INPUT_SOURCES = ("simulated", "pixels", "pixels_no_focal")
 """Where the method's inputs come from: ``simulated`` (perception, shared spaces and camera tracking made
 from the truth, cuts exact) or ``pixels`` (nothing simulated: cuts by scenedetect on the encoded video,
 people by the CPU perception backend, camera trajectories and shared spaces by pycolmap, all from the
-frames a user's decoder gives)."""
+frames a user's decoder gives); ``pixels_no_focal`` as ``pixels`` with the true focal length withheld and
+estimated from the pixels (:func:`multithumbs.scene.focal.estimate_focal`)."""
 PIXEL_BACKENDS = {"shots": "scenedetect:adaptive on the encoded video", "perception": "blazepose (CPU)",
                   "camera_tracking": "pycolmap", "shared_space": "pycolmap"}
 
 
-def pixel_inputs(video, body, seconds: dict[str, float] | None = None):
+def pixel_inputs(video, body, seconds: dict[str, float] | None = None, withhold_focal: bool = False):
     """The method's inputs of a rendered scene with nothing simulated (:data:`INPUT_SOURCES`).
 
     The frames are encoded as MPEG-4 and decoded again, as a user's video would be. Intrinsics are the
-    true ones. Returns ``(shots, tracks, trajectories, spaces, backends)``: ``backends`` names what made
+    true ones, or with ``withhold_focal`` estimated as ``multithumbs run`` estimates them for a video
+    without ``--intrinsics`` (``backends["focal"]`` says from what, and ``seconds["focal"]`` how long).
+    Returns ``(shots, tracks, trajectories, spaces, backends)``: ``backends`` names what made
     each stage (the trajectories' and spaces' own sources, fallbacks included); ``seconds`` (when given)
     receives each stage's wall time.
     """
@@ -108,11 +111,24 @@ def pixel_inputs(video, body, seconds: dict[str, float] | None = None):
         shots = detect_shots(path)
         seconds["shots"] = time.perf_counter() - start
         frames = read_frames(path)
+    focal = None
+    if withhold_focal:
+        from multithumbs.scene.focal import estimate_focal, motion_estimate
+        from multithumbs.scene.two_view import default_intrinsics
+
+        start = time.perf_counter()
+        motion = motion_estimate(frames, shots.ranges)
+        h, w = frames.shape[1:3]
+        K = default_intrinsics(w, h) if motion[0] is None else motion[0].K(w, h)
+        seconds["focal"] = time.perf_counter() - start
     tracks, split = blazepose_tracks(iter(frames), shots, K, body)
     seconds["perception_landmarks"], seconds["perception_fitting"] = split.landmarks, split.fitting
     start = time.perf_counter()
     tracks = fill_appearance(tracks, frames)
     seconds["appearance"] = time.perf_counter() - start
+    if withhold_focal:
+        focal = estimate_focal(frames, shots.ranges, tracks=tracks, motion=motion)
+        K = focal.K(w, h)  # the tracks keep the K they were fitted in: the method re-expresses them
     masks = np.concatenate([tr.people_mask() for tr in tracks])
     geometry = scene_geometry(frames, shots, K, masks)
     seconds["camera_tracking"] = geometry.seconds.get("trajectories", math.nan)
@@ -122,6 +138,9 @@ def pixel_inputs(video, body, seconds: dict[str, float] | None = None):
                 "camera_tracking": ", ".join(sorted({t.source for t in geometry.trajectories})),
                 "shared_space": ", ".join(sorted({s.source + (f" -> {s.fallback}" if s.fallback else "")
                                                   for s in geometry.spaces})) or "none (one shot)"}
+    if focal is not None:
+        truth = float(video.truth.world.K[0, 0, 0])
+        backends["focal"] = f"{focal.line()}; truth {truth:.0f} px, error {100 * (focal.focal_px / truth - 1):+.1f} %"
     return shots, tracks, list(geometry.trajectories), list(geometry.spaces), backends
 
 
@@ -171,9 +190,10 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
 
     fix_threads()  # synthesis and simulated perception round by thread count too, not only the method
     video = synthesize(config, body)
-    if inputs == "pixels":
+    if inputs in ("pixels", "pixels_no_focal"):
         stage_seconds: dict[str, float] = {}
-        shots, tracks, trajectories, spaces, backends = pixel_inputs(video, body, stage_seconds)
+        shots, tracks, trajectories, spaces, backends = pixel_inputs(video, body, stage_seconds,
+                                                                     withhold_focal=inputs == "pixels_no_focal")
         if stages is not None:
             stages.update(backends=backends, seconds=stage_seconds)
     elif inputs != "simulated":

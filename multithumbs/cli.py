@@ -88,7 +88,8 @@ def run_cmd(
     device: str = typer.Option("auto", "--device", help="Torch device of the learned perception backends (hmr2, "
                                "vitpose, sam): auto (CUDA when present), cpu, cuda, cuda:N."),
     intrinsics: Optional[str] = typer.Option(None, "--intrinsics", help="fx,fy,cx,cy of the camera in pixels "
-                                             "(default: a 60 degree horizontal field of view)."),
+                                             "(default: estimated from the pixels: a moving camera, people's "
+                                             "heights, else a 60 degree horizontal field of view)."),
     truth: Optional[Path] = typer.Option(None, "--truth", help="Ground truth .npz to score against."),
     variant: str = typer.Option("full", "--variant", help="Method variant (an ablation or baseline)."),
     settings: list[str] = typer.Option([], "--set", help="Method parameter, e.g. --set reid.max_distance=0.8."),
@@ -174,6 +175,7 @@ def run_cmd(
         if key in METRIC_KEYS:
             table.add_row(key, format_value(value, ".3f"), METRIC_UNITS.get(key, ""))
     output_console().print(table)
+    console.print(summary["backends"].get("focal length", ""), highlight=False)
     people = summary.get("people", [])
     if people:
         console.print("people (global id: shots): " + "; ".join(

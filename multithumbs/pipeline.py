@@ -365,10 +365,13 @@ def run_video_file(video_path, perception: str, body, intrinsics: np.ndarray | N
     """The whole chain in plain Python from a video file (the flow ``flows/video.py`` runs the same stages as
     cached tasks): shots by scenedetect (or the given ``cuts``), people from the ``perception`` spec
     (:func:`multithumbs.perception.load_perception`), camera trajectories and shared spaces by pycolmap with
-    the people masked out, then :func:`run_video`. ``intrinsics`` ``(3, 3)`` defaults to a 60° horizontal
-    field of view. Decodes the whole video into memory: meant for clips.
+    the people masked out, then :func:`run_video`. ``intrinsics`` ``(3, 3)``, when None, are estimated
+    from the pixels (:func:`multithumbs.scene.focal.estimate_focal`: a moving camera, else people's heights,
+    else a 60° horizontal field of view); the diagnostics ``focal_px``, ``focal_source`` and ``focal_detail``
+    say which. Decodes the whole video into memory: meant for clips.
     """
     from multithumbs.perception import load_perception
+    from multithumbs.scene.focal import estimate_focal, given_focal, motion_estimate
     from multithumbs.scene.geometry import scene_geometry
     from multithumbs.scene.shots import detect_shots
     from multithumbs.scene.two_view import default_intrinsics
@@ -379,7 +382,17 @@ def run_video_file(video_path, perception: str, body, intrinsics: np.ndarray | N
         shots = detect_shots(video_path)
     else:
         shots = Shots(np.asarray(cuts, np.int64), info.fps, info.num_frames, np.zeros(info.num_frames), "given")
-    K = default_intrinsics(info.width, info.height) if intrinsics is None else np.asarray(intrinsics, np.float64)
+    frames = read_frames(video_path)
+    if intrinsics is None:  # the focal length from the pixels (multithumbs.scene.focal); perception needs a K first
+        motion = motion_estimate(frames, shots.ranges)
+        K = default_intrinsics(info.width, info.height) if motion[0] is None else motion[0].K(info.width, info.height)
+    else:
+        K = np.asarray(intrinsics, np.float64)
     tracks = load_perception(perception, video_path, shots, trust=trust_pickle, intrinsics=K, body=body)
-    geometry = scene_geometry(read_frames(video_path), shots, K, np.concatenate([tr.people_mask() for tr in tracks]))
-    return run_video(shots, tracks, list(geometry.trajectories), list(geometry.spaces), body, config)
+    focal = given_focal(K) if intrinsics is not None else estimate_focal(frames, shots.ranges, tracks=tracks, motion=motion)
+    K = K if intrinsics is not None else focal.K(info.width, info.height)  # tracks keep theirs: re-expressed
+    geometry = scene_geometry(frames, shots, K, np.concatenate([tr.people_mask() for tr in tracks]))
+    result = run_video(shots, tracks, list(geometry.trajectories), list(geometry.spaces), body, config)
+    result.diagnostics.update(focal_px=np.float64(focal.focal_px), focal_source=np.str_(focal.source),
+                              focal_detail=np.str_(focal.detail))
+    return result

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 CONTRACT_NAMES = ("Shots", "PersonTracks", "CameraTrajectory", "SharedSpace", "WorldResult", "GroundTruth",
-                  "AlignedBoundary", "Placement", "Identities", "Matching")
+                  "AlignedBoundary", "Placement", "Identities", "Matching", "FocalEstimate")
 """The classes an artifact may hold, by name (what ``attributes["contract"]`` records)."""
 
 
@@ -25,10 +25,12 @@ def contracts() -> dict[str, type]:
     from multithumbs.method.align import AlignedBoundary
     from multithumbs.method.reid import Matching
     from multithumbs.pipeline import Identities, Placement
+    from multithumbs.scene.focal import FocalEstimate
     from multithumbs.types import CameraTrajectory, GroundTruth, PersonTracks, SharedSpace, Shots, WorldResult
 
     classes = {cls.__name__: cls for cls in (Shots, PersonTracks, CameraTrajectory, SharedSpace, WorldResult,
-                                             GroundTruth, AlignedBoundary, Placement, Identities, Matching)}
+                                             GroundTruth, AlignedBoundary, Placement, Identities, Matching,
+                                             FocalEstimate)}
     assert tuple(classes) == CONTRACT_NAMES
     return classes
 

@@ -117,6 +117,9 @@ def register(app: typer.Typer) -> None:
         from_pixels: bool = typer.Option(False, "--from-pixels",
                                          help="Nothing simulated: cuts, people, cameras and shared spaces "
                                               "from the rendered video; the simulated run is shown beside it."),
+        withhold_focal: bool = typer.Option(False, "--withhold-focal",
+                                            help="With --from-pixels: withhold the true focal length and "
+                                                 "estimate it from the pixels, as 'multithumbs run' does."),
     ) -> None:
         """Run a synthetic suite with the full method, each ablation and each baseline; print the metrics."""
         import time
@@ -132,11 +135,14 @@ def register(app: typer.Typer) -> None:
         if from_pixels and perception_file != "direct":
             raise InputError("--from-pixels: the people come from the pixels; --perception-file applies to "
                              "simulated perception only")
+        if withhold_focal and not from_pixels:
+            raise InputError("--withhold-focal: only with --from-pixels (simulated inputs use the true cameras)")
+        inputs = ("pixels_no_focal" if withhold_focal else "pixels") if from_pixels else "simulated"
         start = time.perf_counter()
         with _progress() as bar:
             task = bar.add_task(f"suite {suite_name}" + (" from pixels" if from_pixels else ""), total=len(configs))
             results = run_suite(configs, names, workers, progress=lambda s, done, total: bar.update(task, completed=done),
-                                perception=perception_file, inputs="pixels" if from_pixels else "simulated")
+                                perception=perception_file, inputs=inputs)
         summary = summarize(results, names)
         elapsed = time.perf_counter() - start
         if from_pixels:
@@ -202,5 +208,8 @@ def _print_pixels_bench(suite_name, configs, names, results, summary, simulated,
     out.print(table)
     stages = sorted({k for r in results for k in r.stage_seconds})
     totals = {k: sum(r.stage_seconds.get(k, 0.0) for r in results) for k in stages}
+    for r in results:
+        if "focal" in r.backends:
+            out.print(f"{r.scene}: {r.backends['focal']}", highlight=False, soft_wrap=True)
     out.print("input stages, seconds over the suite: " + ", ".join(f"{k} {v:.0f}" for k, v in totals.items()),
               highlight=False, soft_wrap=True)

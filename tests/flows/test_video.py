@@ -71,3 +71,25 @@ def test_plain_python_chain_matches_the_flow(prefect, tmp_path, scene_files):
     flowed = load_result(tmp_path / "out" / "result.npz")
     np.testing.assert_array_equal(plain.id_map, flowed.id_map)
     np.testing.assert_allclose(plain.transl, flowed.transl, atol=1e-3)
+
+
+def test_focal_length_withheld_is_estimated_and_keyed(prefect, tmp_path, scene_files):
+    """No intrinsics: the flow's 'focal' stage estimates them as `run_video_file` does, and says from what."""
+    import numpy as np
+
+    from flows.video import reconstruct_video
+    from multithumbs.body.model import load_body_model
+    from multithumbs.pipeline import run_video_file
+    from storage.store import ArtifactStore
+
+    src, _ = scene_files
+    spec = f"phalp:{src / 'perception.pkl'}"
+    summary = reconstruct_video(str(src / "video.mp4"), str(tmp_path / "out"), str(tmp_path / "store"), spec, True)
+    store = ArtifactStore(tmp_path / "store")
+    assert sorted(store.record(k)["stage"] for k in store.keys()).count("focal") == 2  # motion, then final
+    focal = summary["focal"]
+    assert focal["source"] in ("moving_camera", "heights", "default") and focal["focal_px"] > 0
+    assert summary["backends"]["focal length"].startswith(f"focal length {focal['focal_px']:.0f} px (")
+    plain = run_video_file(src / "video.mp4", spec, load_body_model(), None, trust_pickle=True)
+    assert str(plain.diagnostics["focal_source"]) == focal["source"]
+    np.testing.assert_allclose(float(plain.diagnostics["focal_px"]), focal["focal_px"], rtol=1e-9)
