@@ -60,6 +60,20 @@ def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> list[str]:
             *("| " + " | ".join(row) + " |" for row in rows)]
 
 
+def _cut_cameras(result: WorldResult) -> list[str]:
+    """One line per cut whose boundary cameras came from the people, or from nothing (diagnostics
+    ``cameras_from_cut{c}``: 0 scene, 1 people, 2 none)."""
+    rows = []
+    for c in range(len(result.cut_frames)):
+        code = result.diagnostics.get(f"cameras_from_cut{c}")
+        if code is None or int(code) == 0:
+            continue
+        rows.append(f"- cut {c}: from the people seen on both sides of it" if int(code) == 1 else
+                    f"- cut {c}: nobody was seen on both sides, so the cameras across it are unknown: identities "
+                    f"there rest on appearance and pose, and the shots' relative placement is a guess")
+    return rows
+
+
 def people_by_shot(result: WorldResult) -> list[dict[str, Any]]:
     """Each person of ``result`` with the shots (numbered from 0) and frames they are seen in, by id."""
     starts = np.concatenate([[0], np.asarray(result.cut_frames, int)])
@@ -158,6 +172,9 @@ def render_report_markdown(result: WorldResult, files: Mapping[str, str | Path] 
     else:
         fallback_rows = [f"- {_fmt(v)}" for v in fallbacks if v]
     lines += (["Fallbacks that ran:", "", *fallback_rows] if fallback_rows else ["No fallback ran."]) + [""]
+    camera_rows = _cut_cameras(result)
+    if camera_rows:
+        lines += ["Boundary cameras not from the scene:", "", *camera_rows, ""]
 
     timings = info.pop("timings", None) or {}
     export_timings = info.pop("export_timings", None) or {}

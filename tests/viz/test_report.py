@@ -47,3 +47,15 @@ def test_flatten_metrics():
                             "h": "note"})
     assert flat["a"] == 1 and flat["b.c"] == 2.5 and flat["b.d.e"] == 3 and math.isnan(flat["f"])
     assert "g" not in flat and flat["h"] == "note"
+
+
+def test_report_says_where_a_cuts_cameras_came_from(small_scene):
+    import dataclasses
+
+    world = small_scene.world
+    assert "Boundary cameras not from the scene" not in render_report_markdown(world)
+    cuts = len(world.cut_frames)
+    for code, phrase in ((1, "from the people seen on both sides"), (2, "the cameras across it are unknown")):
+        diagnostics = {**world.diagnostics, **{f"cameras_from_cut{c}": np.int64(code) for c in range(cuts)}}
+        text = render_report_markdown(dataclasses.replace(world, diagnostics=diagnostics))
+        assert "Boundary cameras not from the scene:" in text and "- cut 0: " in text and phrase in text
