@@ -20,10 +20,9 @@ from pathlib import Path
 
 
 def run_scene(config, runs: int) -> dict:
-    import numpy as np
-
     from multithumbs.body.model import load_body_model
-    from multithumbs.scene.focal import estimate_focal, focal_from_heights, motion_estimate
+    from multithumbs.scene.focal import estimate_focal, motion_estimate
+    from multithumbs.scene.focal_heights import focal_from_heights
     from multithumbs.synth.files import write_video
     from multithumbs.synth.perception import simulate_perception
     from multithumbs.synth.scene import synthesize

@@ -7,6 +7,7 @@ import torch
 from multithumbs.errors import InputError
 from multithumbs.geometry import intrinsics_from_fov, look_at
 from multithumbs.scene import focal as F
+from multithumbs.scene import focal_heights
 
 W, H = 640, 360
 
@@ -69,13 +70,13 @@ def test_static_camera_falls_through_to_the_default():
 
 def _pole_tracks(rng, K, pitch_deg=15.0, height=2.4, depth=(2.0, 9.0), people=4, frames=30, noise=1.0):
     """People as 1.45 m poles (mid-ankle to mid-shoulder) walking on the floor, seen by a pitched camera."""
-    R = F._camera_rotation(np.deg2rad(pitch_deg), np.deg2rad(2.0))
+    R = focal_heights._camera_rotation(np.deg2rad(pitch_deg), np.deg2rad(2.0))
     C = np.array([0.0, 0.0, height])
     kp = np.zeros((people, frames, 24, 3))
     start = np.c_[rng.uniform(-1.5, 1.5, people), rng.uniform(*depth, people)]
     walk = rng.normal(0, 0.05, (people, frames, 2)).cumsum(axis=1)
     ground = start[:, None] + walk
-    for z, joints in ((0.08, F.FOOT_JOINTS), (1.53, F.TOP_JOINTS)):
+    for z, joints in ((0.08, focal_heights.FOOT_JOINTS), (1.53, focal_heights.TOP_JOINTS)):
         X = np.concatenate([ground, np.full((people, frames, 1), z)], axis=2)
         cam = (X - C) @ R.T
         uv = cam[..., :2] / cam[..., 2:] * K[0, 0] + K[:2, 2]
@@ -89,13 +90,13 @@ def test_heights_give_the_focal_length_of_a_known_camera():
     rng = np.random.default_rng(3)
     for fov in (40.0, 70.0):
         K = intrinsics_from_fov(W, H, fov)
-        estimate, why = F.focal_from_heights(_pole_tracks(rng, K), (H, W))
+        estimate, why = focal_heights.focal_from_heights(_pole_tracks(rng, K), (H, W))
         assert estimate is not None and estimate.source == "heights", why
         assert abs(estimate.focal_px / K[0, 0] - 1) < 0.05, (fov, estimate)
     # Everybody at one depth: nothing to go on; the chain says so and takes the default.
     flat = _pole_tracks(rng, K, depth=(5.0, 5.0), people=1, frames=60, noise=0.0)
     flat[0].keypoints2d[:, :, :, 1] = flat[0].keypoints2d[:, :1, :, 1]
-    estimate, why = F.focal_from_heights(flat, (H, W))
+    estimate, why = focal_heights.focal_from_heights(flat, (H, W))
     assert estimate is None and "one depth" in why
     frames = np.zeros((4, H, W, 3), np.uint8)
     chosen = F.estimate_focal(frames, [(0, 4)], tracks=flat)
@@ -123,7 +124,7 @@ def test_bad_input_is_one_line():
     for call in (lambda: F.focal_from_motion(np.zeros((5, 10, 10))),
                  lambda: F.estimate_focal(np.zeros((5, 10, 10, 3)), [(0, 5)]),
                  lambda: F.bundle_profile(np.zeros((2, 20, 2)), (H, W), [500.0]),
-                 lambda: F.pole_observations([SimpleNamespace(keypoints2d=np.zeros((1, 3, 17, 3)),
+                 lambda: focal_heights.pole_observations([SimpleNamespace(keypoints2d=np.zeros((1, 3, 17, 3)),
                                                               valid=np.ones((1, 3), bool))])):
         with pytest.raises(InputError) as info:
             call()
