@@ -42,7 +42,7 @@ from scipy import ndimage
 from scipy.optimize import least_squares
 
 from multithumbs.determinism import fix_threads
-from multithumbs.geometry import axis_angle_to_matrix, matrix_to_axis_angle, project, vertex_normals
+from multithumbs.geometry import axis_angle_to_matrix, matrix_to_axis_angle, project, rotation_angle, vertex_normals
 from multithumbs.method.align_objective import _Problem
 from multithumbs.method.config import AlignConfig  # noqa: F401  (defined there without torch; re-exported)
 from multithumbs.method.people_cameras import cameras_from_people
@@ -298,21 +298,29 @@ def _align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignCon
     maps = maps * s
     R0, t0 = space.R.astype(np.float64), space.t.astype(np.float64) * s
     cameras_from, people_pairs = "scene", np.zeros((0, 2), np.int64)
-    fell_back = bool(space.fallback) or not valid.any()
     if config.people_cameras not in ("fallback", "always", "never"):
         raise ValueError(f"people_cameras {config.people_cameras!r}: use 'fallback', 'always' or 'never'")
-    if config.people_cameras == "always" or (config.people_cameras == "fallback" and fell_back):
+    # No scene cameras at all (nothing matched, or a homography's rotation only) ...
+    no_scene = space.fallback in ("human_only", "rotation_only") or not valid.any()
+    # ... or a pose found only by a fallback path (pooled neighbour frames, the people's own features),
+    # which at a reverse cut is often a spurious match: checked against the people's.
+    doubtful = bool(space.fallback) and not no_scene
+    if config.people_cameras == "always" or (config.people_cameras == "fallback" and (no_scene or doubtful)):
         pelvis = fitted if fitted is not None else keypoint_fitted_pelvis(people, space.K, config.keypoint_confidence)
         found = cameras_from_people(people, pelvis, space.K, config.keypoint_confidence,
                                     w_appearance=config.people_w_appearance,
                                     unmatched_cost=config.people_unmatched_cost)
-        if found.found:  # the people's metric frame: camera 0 is the world, the space's points are not used
+        scene_rotation = space.R[1] @ space.R[0].T
+        agrees = found.found and float(np.rad2deg(rotation_angle(found.R[1], scene_rotation))) <= \
+            config.people_agreement_deg
+        if found.found and (no_scene or config.people_cameras == "always" or not agrees):
+            # The people's metric frame: camera 0 is the world, the space's points are not used.
             R0, t0, cameras_from, people_pairs = found.R, found.t, "people", found.pairs
             valid = np.zeros_like(valid)
             single_view = np.zeros_like(single_view)
-        elif fell_back:
+        elif no_scene:
             cameras_from = "none"
-    elif fell_back:
+    elif no_scene:
         cameras_from = "none"
     follow = single_view & valid if config.points_follow_cameras else np.zeros_like(valid)
     if not skip and config.refine_cameras and config.register_views and follow.any():

@@ -57,8 +57,12 @@ class AlignConfig:
         view_robust_scale: its Cauchy scale and occlusion margin (m).
         view_smoothing_px: smoothing of the depth maps it compares with (pixels).
         people_cameras: when the boundary cameras come from the people seen on both sides of the cut
-            (:mod:`multithumbs.method.people_cameras`): ``"fallback"`` (default: when the shared space fell
-            back, having found nothing to register the two frames by), ``"always"`` or ``"never"``.
+            (:mod:`multithumbs.method.people_cameras`): ``"fallback"`` (default: when the shared space has
+            no cameras of its own, ``human_only`` or ``rotation_only``, and when its pose came from a
+            fallback path, ``neighbour_frames`` or ``with_people``, that disagrees with the people's by more
+            than ``people_agreement_deg``: at a reverse cut such a pose is often a spurious match),
+            ``"always"`` or ``"never"``.
+        people_agreement_deg: see ``people_cameras``.
         people_w_appearance: weight of the appearance dissimilarity in choosing who is who there.
         people_unmatched_cost: cost of leaving a person unmatched there (a matched pair costs its
             reprojection error in units of 5 % of the person's size, its orientation's disagreement in units
@@ -91,6 +95,7 @@ class AlignConfig:
     view_smoothing_px: float = 3.0
     w_camera_prior: float = 1e-3
     people_cameras: str = "fallback"
+    people_agreement_deg: float = 15.0
     people_w_appearance: float = 2.0
     people_unmatched_cost: float = 2.5
 

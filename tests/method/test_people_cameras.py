@@ -137,3 +137,21 @@ def test_a_person_back_two_shots_later_keeps_their_id(a_b_a, body):
     assert len(ids) == 3 and len(set.union(*ids.values())) == 3
     # Person 0 is absent in shot 1: shot 2's track of them took shot 0's id.
     assert 0 in truth[0] and 0 not in truth[1] and 0 in truth[2]
+
+
+def test_a_fallback_pose_is_kept_only_when_the_people_agree(tiny, body):
+    # A pose found by a fallback path (pooled neighbour frames) is checked against the people's cameras.
+    from multithumbs.geometry import axis_angle_to_matrix
+
+    people = boundary_people(tiny.tracks[0], tiny.tracks[1], body, K=tiny.spaces[0].K)
+    pooled = dataclasses.replace(tiny.spaces[0], fallback="neighbour_frames")
+    assert align_boundary(people, pooled, FAST).cameras_from == "scene"  # right: kept
+    turned = axis_angle_to_matrix(np.array([0.0, np.pi / 2, 0.0]))
+    wrong = dataclasses.replace(pooled, R=np.stack([pooled.R[0], turned @ pooled.R[1]]))
+    aligned = align_boundary(people, wrong, FAST)
+    assert aligned.cameras_from == "people"
+    truth = tiny.video.truth.world
+    cut = int(truth.cut_frames[0])
+    R_true = truth.R[cut] @ truth.R[cut - 1].T
+    assert np.rad2deg(rotation_angle(aligned.R[1] @ aligned.R[0].T, R_true)) < 2.0
+    assert align_boundary(people, tiny.spaces[0], FAST).cameras_from == "scene"  # no fallback: not asked
