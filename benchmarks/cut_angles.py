@@ -14,7 +14,9 @@ rotation ``R_b R_{b-1}^T`` against the truth's, and where the cameras came from 
 Writes a JSON and a plot (``--plot``: W-MPJPE and rotation error against the angle, fallback cuts marked).
 
     .venv/bin/python benchmarks/cut_angles.py [--geometry simulated|pixels] [--workers 2] [--json OUT]
-        [--plot docs/cut_angles.png]
+        [--plot docs/cut_angles.png] [--suite dialogue]
+
+``--suite NAME``: the same figures for a suite's scenes (every cut) instead of the sweep.
 """
 
 from __future__ import annotations
@@ -30,7 +32,12 @@ DIALOGUE_ANGLES = (60, 90, 120, 150, 180)
 
 def scene_config(layout: str, angle: int):
     from multithumbs.synth.scene import SceneConfig
+    from multithumbs.synth.suite import SUITES
 
+    for configs in SUITES.values():  # a suite's scene, by name
+        for config in configs:
+            if config.name == layout:
+                return config
     if layout == "orbit":
         return SceneConfig(name=f"orbit_{angle}deg", num_people=2, num_shots=2, cut_angle_deg=angle, seed=400 + angle)
     return SceneConfig(name=f"dialogue_{angle}deg", num_people=2, num_shots=2, cut_angle_deg=angle, seed=500 + angle,
@@ -132,9 +139,14 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--json", default="")
     parser.add_argument("--plot", default="")
+    parser.add_argument("--suite", default="", help="the scenes of this suite instead of the sweep")
     args = parser.parse_args()
     jobs = [("orbit", a, args.geometry) for a in ORBIT_ANGLES] + [("dialogue", a, args.geometry)
                                                                    for a in DIALOGUE_ANGLES]
+    if args.suite:
+        from multithumbs.synth.suite import suite
+
+        jobs = [(c.name, int(c.cut_angle_deg), args.geometry) for c in suite(args.suite)]
     start = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
         rows = list(pool.map(run_one, jobs))
@@ -143,9 +155,12 @@ def main() -> None:
     print(f"{'scene':<14}{'fallback':<9}{'W-MPJPE':>9}{'(never)':>9}{'IDs':>5}{'rot°':>7}{'(never)':>9}  cameras")
     for r in rows:
         p, n = r["people"], r["never"]
-        print(f"{r['layout'][:8] + ' ' + str(r['angle']):<14}{'yes' if r['fallback'][0] else '-':<9}"
-              f"{p['w_mpjpe']:>9.1f}{n['w_mpjpe']:>9.1f}{p['ids']:>5.0f}{p['rotation_error_deg'][0]:>7.2f}"
-              f"{n['rotation_error_deg'][0]:>9.2f}  {p['cameras_from'][0]}")
+        for c in range(len(r["fallback"])):  # one line per cut
+            first = c == 0
+            print(f"{(r['layout'][:8] + ' ' + str(r['angle'])) if first else '  cut ' + str(c):<14}"
+                  f"{'yes' if r['fallback'][c] else '-':<9}"
+                  + (f"{p['w_mpjpe']:>9.1f}{n['w_mpjpe']:>9.1f}{p['ids']:>5.0f}" if first else " " * 23)
+                  + f"{p['rotation_error_deg'][c]:>7.2f}{n['rotation_error_deg'][c]:>9.2f}  {p['cameras_from'][c]}")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump({"geometry": args.geometry, "wall_seconds": wall, "rows": rows}, fh, indent=1)
