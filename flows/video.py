@@ -60,11 +60,11 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
 
     from multithumbs.scene.focal import FocalConfig, given_focal
     from multithumbs.scene.shots import ShotConfig
-    from tasks.artifacts import load
     from multithumbs.scene.tracking import TrackingConfig
     from multithumbs.scene.two_view import TwoViewConfig
     from multithumbs.video import probe_video
     from storage.keys import file_digest
+    from tasks.artifacts import load
     from tasks.body import resolve_body
 
     info = probe_video(video)
@@ -135,7 +135,6 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
                                       "focal": focal.to_json()},
                             body_path)
     from multithumbs.viz.report import people_by_shot
-    from tasks.artifacts import load
 
     return {"metrics": metrics, "files": files, "num_shots": len(tracks), "backends": backends, "timings": timings,
             "focal": focal.to_json(),
