@@ -107,7 +107,7 @@ def plot(rows: list[dict], path: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.4))
     styles = {("orbit", "people"): ("tab:blue", "-o"), ("dialogue", "people"): ("tab:red", "-o"),
               ("orbit", "never"): ("tab:blue", ":x"), ("dialogue", "never"): ("tab:red", ":x")}
     for (layout, run), (colour, style) in styles.items():
@@ -128,8 +128,9 @@ def plot(rows: list[dict], path: str) -> None:
     axes[1].set(xlabel="cut angle (degrees)", ylabel="rotation error at the cut (degrees)", yscale="log",
                 title="boundary cameras' relative rotation error")
     axes[1].axhline(5.0, color="grey", lw=0.8, ls="--")
-    axes[0].legend(fontsize=8)
-    fig.tight_layout()
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     fig.savefig(path, dpi=110)
 
 
