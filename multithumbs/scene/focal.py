@@ -304,8 +304,11 @@ def _keyframe_tracks(frames: np.ndarray, masks: np.ndarray | None, config: Focal
     if count < config.keyframes:
         return None, f"shot too short ({count} frames)"
     xy, seen = _track_table(klt_tracks(grays, rooms, tracking), count)
-    common = np.cumprod(seen, axis=0).astype(bool).sum(axis=1)  # tracks alive since frame 0
-    last = int(np.nonzero(common >= config.min_tracks)[0].max())
+    common = np.cumprod(seen, axis=0).astype(bool).sum(axis=1) if seen.size else np.zeros(count, int)
+    enough = np.nonzero(common >= config.min_tracks)[0]  # frames still holding enough tracks from frame 0
+    if not len(enough):
+        return None, f"fewer than {config.min_tracks} room tracks"
+    last = int(enough.max())
     if last < config.keyframes - 1:
         return None, "tracks too short"
     keys = np.unique(np.linspace(0, last, config.keyframes).round().astype(int))

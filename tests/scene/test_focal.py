@@ -129,3 +129,18 @@ def test_bad_input_is_one_line():
         with pytest.raises(InputError) as info:
             call()
         assert "\n" not in str(info.value)
+
+
+def test_a_moving_shot_without_enough_room_tracks_falls_through(monkeypatch):
+    # A shot that is not static but whose first frame holds fewer room tracks than needed (Megamind's
+    # close-ups: the camera drifts, the room is hidden by faces) once crashed on an empty selection.
+    from multithumbs.scene import tracking
+
+    monkeypatch.setattr(tracking, "is_static", lambda *args, **kwargs: False)
+    rng = np.random.default_rng(0)
+    frames = rng.integers(0, 255, (12, 72, 96, 3), dtype=np.uint8)
+    few = F.FocalConfig(min_tracks=10**6)
+    estimate, why = F.focal_from_motion(frames, config=few)
+    assert estimate is None and "room tracks" in why
+    chosen = F.estimate_focal(frames, [(0, 12)], config=few)
+    assert chosen.source == "default" and "moving camera" in chosen.detail
