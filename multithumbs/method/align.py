@@ -106,8 +106,8 @@ class AlignedBoundary:
             and the matched people's roots from :mod:`multithumbs.method.people_cameras`, no stages).
         cameras_from: where the boundary cameras came from: ``"scene"`` (the shared space), ``"people"``
             (:mod:`multithumbs.method.people_cameras`, the space having fallen back) or ``"none"`` (the space
-            fell back and no person was seen on both sides: the cameras, and root distances across the
-            cut, mean nothing).
+            fell back and nobody was seen on both sides with enough keypoints, e.g. close-ups: the cameras,
+            and root distances across the cut, mean nothing).
         people_pairs: ``(M, 2)`` the boundary people (side-0, side-1 index) the people-based cameras matched.
     """
 

@@ -69,8 +69,9 @@ def _cut_cameras(result: WorldResult) -> list[str]:
         if code is None or int(code) == 0:
             continue
         rows.append(f"- cut {c}: from the people seen on both sides of it" if int(code) == 1 else
-                    f"- cut {c}: nobody was seen on both sides, so the cameras across it are unknown: identities "
-                    f"there rest on appearance and pose, and the shots' relative placement is a guess")
+                    f"- cut {c}: the scene gave no cameras and nobody was seen on both sides with enough body "
+                    f"keypoints, so the cameras across it are unknown: identities there rest on appearance and "
+                    f"pose, and the shots' relative placement is a guess")
     return rows
 
 
