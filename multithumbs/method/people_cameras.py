@@ -175,11 +175,11 @@ def cameras_from_people(people, pelvis_cam: np.ndarray, K: np.ndarray, min_conf:
         pelvis_cam: ``(2, P, 3)`` camera-frame pelvis at the keypoint-fitted depth.
         K: ``(2, 3, 3)``.
         min_keypoints: a person takes part with at least this many confident keypoints.
-        reprojection_scale, orientation_scale_deg: units of a pair's reprojection error (relative to the
-            person's size in the image) and of its orientation's disagreement with the hypothesis's rotation in the cost (module docstring).
+        reprojection_scale, orientation_scale_deg: units, in the cost, of a pair's reprojection error
+            (relative to the person's size in the image) and of its orientation's disagreement with the
+            hypothesis's rotation (module docstring).
         max_pairs: matchings of at most this many pairs are tried (the count grows factorially).
     """
-    image_size = people.masks.shape[-2:]
     usable = [[p for p in np.nonzero(people.present[k])[0]
                if (people.keypoints[k, p, :, 2] >= min_conf).sum() >= min_keypoints] for k in range(2)]
     eye = np.stack([np.eye(3)] * 2)
