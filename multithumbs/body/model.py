@@ -16,8 +16,6 @@ from __future__ import annotations
 import contextlib
 import functools
 import io
-import itertools
-import pickle
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,7 +25,10 @@ import torch
 from smplx.lbs import vertices2joints
 from smplx.utils import Struct
 
-from multithumbs.body.procedural import write_npz
+# Reading SMPL files (numpy .npz checked, chumpy pickles converted) lives in smpl_files; re-exported here.
+from multithumbs.body.smpl_files import _read_npz, convert_smpl_pickle, read_smpl_pickle  # noqa: F401
+# The posing algebra (Rodrigues coordinate-major, the kinematic tree by levels) lives in kinematics.
+from multithumbs.body.kinematics import _KinematicLevels, rodrigues_coordinate_major  # noqa: F401
 from multithumbs.conventions import NUM_BETAS, NUM_BODY_JOINTS, NUM_JOINTS
 from multithumbs.body.paths import MODEL_ENV_VAR, resolve_model_path  # noqa: F401  (re-exported)
 from multithumbs.errors import InputError
@@ -39,7 +40,6 @@ SMPL_FOOT_VERTEX_IDS = np.array([3216, 3387, 6617, 6787])
 VERTICES_PER_CALL = 4_000_000
 """Poses per ``smplx`` call are capped so that a call handles about this many vertices (bounds memory)."""
 
-_REQUIRED = ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table", "f")
 
 
 @dataclass(frozen=True)
@@ -218,98 +218,6 @@ class BodyModel:
         return tensor.to(self.dtype)
 
 
-_SKEW_BASIS = torch.tensor([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0],
-                            [0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0],
-                            [0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
-"""``(9, 3)``: ``_SKEW_BASIS @ k`` is ``[k]x = [[0, -z, y], [z, 0, -x], [-y, x, 0]]`` flattened row-major."""
-
-
-def rodrigues_coordinate_major(rotvec: torch.Tensor) -> torch.Tensor:
-    """Axis-angle ``(3, ...)`` to rotation matrices ``(3, 3, ...)``, coordinates leading.
-
-    smplx's ``batch_rodrigues`` to rounding: the same formula ``I + sin θ K + (1 - cos θ) K²`` (here with
-    ``K² = k kᵀ - |k|² I``) and the same ``1e-8`` offset in the angle, so a zero vector gives the identity
-    with a finite gradient. With the coordinates leading, every op runs on contiguous rows of the batch,
-    which is much faster on CPU than batched 3x3 products or reductions over a trailing dimension of 3.
-    """
-    angle = (rotvec + 1e-8).square().sum(0, keepdim=True).sqrt()
-    axis = rotvec / angle
-    skew = (_SKEW_BASIS.to(rotvec.dtype) @ axis.reshape(3, -1)).reshape(3, 3, *rotvec.shape[1:])
-    outer = axis.unsqueeze(1) * axis.unsqueeze(0)
-    eye = torch.eye(3, dtype=rotvec.dtype).reshape(3, 3, *(1,) * (rotvec.ndim - 1))
-    # |k| is 1 up to the angle's offset, which smplx's K @ K keeps: so does |k|² here.
-    return eye + torch.sin(angle) * skew + (1 - torch.cos(angle)) * (outer - eye * axis.square().sum(0, keepdim=True))
-
-
-class _KinematicLevels:
-    """A kinematic tree walked one depth level at a time (joints of one level are posed together).
-
-    Works coordinate-major (joints on dimension -2, the batch last), see :meth:`pose`. With SMPL's
-    breadth-first joint order each level is a contiguous block and most parent lookups are slices.
-    """
-
-    def __init__(self, parents: np.ndarray):
-        parents = np.asarray(parents, np.int64)
-        count = len(parents)
-        depth = np.zeros(count, np.int64)
-        for j in range(1, count):
-            if not 0 <= parents[j] < j:
-                raise InputError(f"SMPL model: kinematic tree joint {j} has parent {parents[j]}, "
-                                 "expected an earlier joint")
-            depth[j] = depth[parents[j]] + 1
-        order = np.argsort(depth, kind="stable")
-        self.reorder = None if np.array_equal(order, np.arange(count)) else torch.as_tensor(order)
-        self.restore = None if self.reorder is None else torch.as_tensor(np.argsort(order))
-        has_child = np.zeros(count, bool)
-        has_child[parents[1:]] = True
-        self.sizes = [int((depth == d).sum()) for d in range(depth.max() + 1)]
-        levels = np.split(order, np.cumsum(self.sizes)[:-1])
-        # Per level after the root: where each joint's parent sits among the previous level's joints
-        # (positions) and among those of them with children (rotations), and which joints have children.
-        self.steps = []
-        for prev, ids in itertools.pairwise(levels):
-            prev_rot = [j for j in prev if has_child[j]]
-            self.steps.append((_lookup([list(prev).index(p) for p in parents[ids]]),
-                               _lookup([prev_rot.index(p) for p in parents[ids]]),
-                               _lookup([i for i, j in enumerate(ids) if has_child[j]])))
-
-    def pose(self, rotations: torch.Tensor, rest: torch.Tensor) -> torch.Tensor:
-        """``(3, J, N)`` posed joints from local rotations ``(3, 3, J, N)`` and rest joints ``(3, J, N)``.
-
-        Each level: ``x_j = x_parent + G_parent (r_j - r_parent)`` and, for joints with children,
-        ``G_j = G_parent R_j``. The root stays at its rest position (as in smplx's ``batch_rigid_transform``).
-        """
-        if self.reorder is not None:
-            rest, rotations = rest.index_select(-2, self.reorder), rotations.index_select(-2, self.reorder)
-        rest_levels = rest.split(self.sizes, dim=-2)
-        rotation_levels = rotations.split(self.sizes, dim=-2)
-        posed = [rest_levels[0]]
-        frames = rotation_levels[0]                       # global rotations of the level's joints with children
-        for (pos_of_parent, rot_of_parent, with_children), prev_rest, level_rest, local in zip(
-                self.steps, rest_levels[:-1], rest_levels[1:], rotation_levels[1:]):
-            parent_rot = rot_of_parent(frames)
-            offset = level_rest - pos_of_parent(prev_rest)
-            posed.append(pos_of_parent(posed[-1]) + (parent_rot * offset.unsqueeze(0)).sum(1))
-            if with_children is not None:
-                frames = (with_children(parent_rot).unsqueeze(2) * with_children(local).unsqueeze(0)).sum(1)
-        out = torch.cat(posed, dim=-2)
-        return out if self.restore is None else out.index_select(-2, self.restore)
-
-
-def _lookup(index: list[int]):
-    """``f(x)`` selecting ``x[..., index, :]`` (a slice or a broadcast where the index allows one);
-    None for an empty index."""
-    if len(index) == 0:
-        return None
-    first, count = index[0], len(index)
-    if index == list(range(first, first + count)):
-        return lambda x: x[..., first:first + count, :]
-    if all(i == first for i in index):
-        return lambda x: x[..., first:first + 1, :].expand(*x.shape[:-2], count, x.shape[-1])
-    positions = torch.as_tensor(index)
-    return lambda x: x.index_select(-2, positions)
-
-
 @functools.lru_cache(maxsize=8)
 def _load_cached(path: Path, source: str, mtime_ns: int) -> BodyModel:
     return BodyModel(None if source == "procedural" else path)
@@ -365,108 +273,6 @@ def landmark_vertex_ids(v_template: np.ndarray, weights: np.ndarray, joints: np.
         for name, offset in (("index", 0.025), ("middle", 0.0), ("ring", -0.02), ("pinky", -0.035)):
             ids[f"{prefix}{name}"] = extreme((hand,), along - 3 * np.abs(across - offset))
     return ids
-
-
-def convert_smpl_pickle(source: str | Path, destination: str | Path) -> Path:
-    """Convert an official SMPL ``.pkl`` (chumpy arrays, Python 2 pickle) to a plain numpy ``.npz``.
-
-    chumpy does not run on current Python; this reads its pickled arrays without it (chumpy ``Ch``
-    objects become their ``x`` array, scipy sparse matrices become dense) and writes the arrays
-    ``smplx.SMPL`` needs. Point ``$MULTITHUMBS_SMPL_MODEL`` at the result.
-    """
-    arrays = read_smpl_pickle(source)
-    arrays["f"] = arrays["f"].astype(np.int64)
-    arrays["kintree_table"] = arrays["kintree_table"].astype(np.int64)
-    arrays["kintree_table"][0, 0] = -1
-    return write_npz(destination, arrays)
-
-
-def read_smpl_pickle(path: str | Path) -> dict[str, np.ndarray]:
-    """The arrays ``smplx.SMPL`` needs from an SMPL pickle, read without chumpy (``Ch`` objects -> their
-    ``x`` arrays, scipy sparse -> dense); :class:`InputError` for a broken or foreign file."""
-    path = Path(path)
-    try:
-        with open(path, "rb") as file:
-            data = _ChumpyFreeUnpickler(file, encoding="latin1").load()
-    except Exception as error:  # pickle raises many types for a broken or foreign file
-        raise InputError(f"SMPL model {path}: cannot be read as a pickle ({type(error).__name__}: {error})") from None
-    if not isinstance(data, dict):
-        raise InputError(f"SMPL model {path}: expected a pickled dict of arrays, got {type(data).__name__}")
-    arrays = {}
-    for key in _REQUIRED:
-        if key not in data:
-            raise InputError(f"SMPL model {path}: has no {key!r} array")
-        value = data[key]
-        arrays[key] = np.asarray(value.toarray() if hasattr(value, "toarray") else _plain(value))
-    return arrays
-
-
-def _plain(value):
-    """A chumpy stand-in's array, or the value itself."""
-    return value.state.get("x") if isinstance(value, _PickledObject) else value
-
-
-class _PickledObject:
-    """Stand-in for classes of modules that cannot be imported (chumpy): keeps the pickled state."""
-
-    state: dict = {}
-
-    def __setstate__(self, state):
-        self.state = state if isinstance(state, dict) else {"state": state}
-
-
-class _PickledCsc(_PickledObject):
-    """Stand-in for a pickled scipy ``csc_matrix`` of any scipy version, rebuilt densely."""
-
-    layout = "csc"
-
-    def toarray(self) -> np.ndarray:
-        import scipy.sparse
-
-        s = self.state
-        matrix = scipy.sparse.csr_matrix if self.layout == "csr" else scipy.sparse.csc_matrix
-        return matrix((s["data"], s["indices"], s["indptr"]), shape=tuple(s.get("_shape", s.get("shape")))).toarray()
-
-
-class _PickledCsr(_PickledCsc):
-    layout = "csr"
-
-
-class _ChumpyFreeUnpickler(pickle.Unpickler):
-    def find_class(self, module: str, name: str):
-        if module.split(".")[0] == "chumpy":
-            return _PickledObject
-        if module.startswith("scipy.sparse") and name in ("csc_matrix", "csr_matrix"):
-            return _PickledCsr if name == "csr_matrix" else _PickledCsc
-        return super().find_class(module, name)
-
-
-def _read_npz(path: Path) -> dict[str, np.ndarray]:
-    """The arrays of a numpy SMPL file, checked."""
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            arrays = {key: npz[key] for key in npz.files}
-    except Exception as error:  # zipfile/numpy raise many types for a broken file
-        raise InputError(f"SMPL model {path}: not a readable numpy .npz file ({error})") from None
-    missing = [key for key in _REQUIRED if key not in arrays]
-    if missing:
-        raise InputError(f"SMPL model {path}: missing arrays {missing} (an SMPL .npz needs {list(_REQUIRED)})")
-    n = arrays["v_template"].shape[0] if arrays["v_template"].ndim == 2 else -1
-    expected = {"v_template": (n, 3), "J_regressor": (NUM_JOINTS, n), "weights": (n, NUM_JOINTS),
-                "kintree_table": (2, NUM_JOINTS)}
-    for key, shape in expected.items():
-        if arrays[key].shape != shape or n < 1:
-            raise InputError(f"SMPL model {path}: {key} has shape {arrays[key].shape}, expected {shape}")
-    if arrays["shapedirs"].ndim != 3 or arrays["shapedirs"].shape[:2] != (n, 3) or arrays["shapedirs"].shape[2] < NUM_BETAS:
-        raise InputError(f"SMPL model {path}: shapedirs has shape {arrays['shapedirs'].shape}, "
-                         f"expected ({n}, 3, >= {NUM_BETAS})")
-    if arrays["posedirs"].shape != (n, 3, 9 * NUM_BODY_JOINTS):
-        raise InputError(f"SMPL model {path}: posedirs has shape {arrays['posedirs'].shape}, "
-                         f"expected ({n}, 3, {9 * NUM_BODY_JOINTS})")
-    faces = arrays["f"]
-    if faces.ndim != 2 or faces.shape[1] != 3 or faces.size == 0 or faces.min() < 0 or faces.max() >= n:
-        raise InputError(f"SMPL model {path}: f must be (F, 3) vertex indices below {n}")
-    return arrays
 
 
 def _make_smpl(path: Path, data: Struct | None, vertex_ids: dict[str, int] | None,

@@ -8,91 +8,22 @@ video with exact depth and instance masks, and assembles the :class:`GroundTruth
 from __future__ import annotations
 
 import dataclasses
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
 from multithumbs.body.model import BodyModel
-from multithumbs.errors import InputError
 from multithumbs.geometry import camera_centre, intrinsics_from_fov, look_at, project_points, world_to_camera
 # The settings and their JSON form live without torch in multithumbs.synth.config; re-exported here.
 from multithumbs.synth.config import MotionConfig, SceneConfig, config_from_json, config_to_json  # noqa: F401
-from multithumbs.synth.motion import (PersonMotion, motion_to_smpl, simulate_walk, straight_walk,
-                                      walk_abreast)
+from multithumbs.synth.choreography import _abreast_motions, _crossing_motion, _walk_clear_of
+from multithumbs.synth.clothing import Clothing, _draw_clothing
+from multithumbs.synth.motion import PersonMotion, motion_to_smpl
 from multithumbs.synth.render import MeshInstance, Render, render_view
 from multithumbs.synth.room import Room, make_room
 from multithumbs.synth.splice import even_cuts, shot_camera_ids, splice_views
 from multithumbs.types import GroundTruth, WorldResult, pack_mask
-
-
-# Clothing regions by the SMPL joint that drives a vertex.
-_SKIN_PARTS = (12, 15, 20, 21, 22, 23)
-_TOP_PARTS = (3, 6, 9, 13, 14, 16, 17)
-_SLEEVE_PARTS = (18, 19)
-_BOTTOM_PARTS = (0, 1, 2, 4, 5)
-_SHOE_PARTS = (7, 8, 10, 11)
-_SKIN_TONES = np.array([[0.96, 0.80, 0.69], [0.87, 0.67, 0.52], [0.68, 0.48, 0.34],
-                        [0.45, 0.31, 0.22], [0.92, 0.74, 0.60]])
-_HAIR = np.array([[0.08, 0.06, 0.05], [0.35, 0.22, 0.12], [0.75, 0.6, 0.35], [0.2, 0.2, 0.2]])
-_GARMENTS = np.array([  # saturated and neutral clothing colours, distinct in hue
-    [0.80, 0.12, 0.12], [0.10, 0.35, 0.80], [0.12, 0.62, 0.22], [0.95, 0.75, 0.10], [0.55, 0.20, 0.65],
-    [0.95, 0.45, 0.10], [0.10, 0.65, 0.70], [0.90, 0.90, 0.88], [0.15, 0.15, 0.18], [0.60, 0.40, 0.25],
-    [0.95, 0.55, 0.70], [0.30, 0.30, 0.55],
-])
-
-# The dressed-alike pairs' uniform: a charcoal suit, darker trousers, black shoes (all neutral grey).
-_UNIFORM_TOP = np.array([0.30, 0.30, 0.30])
-_UNIFORM_BOTTOM = np.array([0.20, 0.20, 0.20])
-_UNIFORM_SHOES = np.array([0.08, 0.08, 0.08])
-
-
-@dataclass(frozen=True)
-class Clothing:
-    """Colours of one person (RGB in [0, 1]).
-
-    Attributes:
-        skin, hair, top, sleeves, bottom, shoes: ``(3,)`` each.
-    """
-
-    skin: np.ndarray
-    hair: np.ndarray
-    top: np.ndarray
-    sleeves: np.ndarray
-    bottom: np.ndarray
-    shoes: np.ndarray
-
-    def vertex_colors(self, part_labels: np.ndarray, rest_vertices: np.ndarray, head_top: float) -> np.ndarray:
-        """``(V, 3)`` colours from each vertex's part (and hair on the top of the head)."""
-        colors = np.tile(self.skin, (part_labels.shape[0], 1))
-        for parts, color in ((_TOP_PARTS, self.top), (_SLEEVE_PARTS, self.sleeves),
-                             (_BOTTOM_PARTS, self.bottom), (_SHOE_PARTS, self.shoes)):
-            colors[np.isin(part_labels, parts)] = color
-        head = part_labels == 15
-        hair = head & (rest_vertices[:, 1] > head_top - 0.09) | head & (rest_vertices[:, 2] < rest_vertices[head, 2].mean() - 0.04)
-        colors[hair] = self.hair
-        return colors
-
-
-def _draw_clothing(rng: np.random.Generator, num_people: int, alike: tuple[tuple[int, int], ...]) -> list[Clothing]:
-    tops = rng.permutation(len(_GARMENTS))
-    bottoms = rng.permutation(len(_GARMENTS))
-    out = []
-    for p in range(num_people):
-        top = _GARMENTS[tops[p % len(tops)]]
-        bottom = _GARMENTS[bottoms[(p + 3) % len(bottoms)]] * 0.7  # trousers a bit darker
-        sleeves = top if rng.random() < 0.6 else _SKIN_TONES[rng.integers(len(_SKIN_TONES))]
-        out.append(Clothing(_SKIN_TONES[rng.integers(len(_SKIN_TONES))], _HAIR[rng.integers(len(_HAIR))],
-                            top, sleeves, bottom, np.array([0.12, 0.1, 0.09]) + 0.3 * rng.random() * np.ones(3)))
-    for a, b in alike:
-        # A uniform: both wear the same achromatic suit (no hue for a colour descriptor to key on, and grey
-        # stays grey however the light falls on it) and the same skin, with shaven heads (hair = skin), so
-        # the head looks the same from the front and the back: appearance alone cannot tell them apart,
-        # whichever way each faces. The draws above are kept so everybody else dresses as before.
-        skin = out[a].skin
-        out[a] = out[b] = Clothing(skin, skin, _UNIFORM_TOP, _UNIFORM_TOP, _UNIFORM_BOTTOM, _UNIFORM_SHOES)
-    return out
 
 
 @dataclass(frozen=True)
@@ -221,159 +152,6 @@ def build_scene(config: SceneConfig) -> Scene:
         betas[b] = betas[a]
     camera_ids = shot_camera_ids(config.num_frames, cuts, list(range(config.num_shots)))
     return Scene(config, room, tuple(motions), presence, betas, tuple(clothing), cameras, cuts, camera_ids)
-
-
-def _crossing_motion(config: SceneConfig, cuts: np.ndarray, which: int, rng: np.random.Generator) -> PersonMotion:
-    """Two people walking towards each other on parallel lines 0.5 m apart, passing at the first cut."""
-    t_meet = (cuts[0] if cuts.size else config.num_frames // 2) / config.fps
-    speed = float(np.clip(1.8 / max(t_meet, 1e-3), 0.6, 1.3))
-    angle = np.deg2rad(20.0) + rng.uniform(-0.2, 0.2) * 0  # one shared line direction for the pair
-    along = np.array([np.cos(angle), np.sin(angle)])
-    across = np.array([-along[1], along[0]])
-    sign = 1.0 if which == 0 else -1.0
-    start = -sign * speed * t_meet * along + sign * 0.25 * across
-    end = sign * 3.0 * along + sign * 0.25 * across
-    return simulate_walk(start, [end], config.num_frames, config.fps, rng, config.motion, speed=speed,
-                         allow_pauses=False)
-
-
-def _frame_cameras(config: SceneConfig, cameras: CameraRig, cuts: np.ndarray) -> np.ndarray:
-    """``(T, 2)`` floor position of the camera filming each frame."""
-    frames = np.arange(config.num_frames)
-    shot = np.searchsorted(cuts, frames, side="right")
-    return camera_centre(cameras.R[shot, frames], cameras.t[shot, frames])[:, :2]
-
-
-def _hidden_fraction(pos_a: np.ndarray, pos_b: np.ndarray, camera: np.ndarray, half_width: float = 0.25
-                     ) -> np.ndarray:
-    """``(T,)`` fraction of the narrower person's width that the other covers, seen from ``camera (T, 2)``.
-
-    People are discs of ``half_width`` on the floor at ``pos_a, pos_b (T, 2)``; widths are angles about the
-    camera centre.
-    """
-    angle, half = [], []
-    for pos in (pos_a, pos_b):
-        rel = pos - camera
-        dist = np.linalg.norm(rel, axis=1)
-        angle.append(np.arctan2(rel[:, 1], rel[:, 0]))
-        half.append(np.arcsin(half_width / np.maximum(dist, half_width)))
-    apart = np.abs((angle[0] - angle[1] + np.pi) % (2 * np.pi) - np.pi)
-    covered = np.clip(half[0] + half[1] - apart, 0, None)
-    return np.minimum(covered / (2 * np.minimum(half[0], half[1])), 1.0)
-
-
-# A passer-by keeps this far (m, pelvis to pelvis) from scripted people and hides at most this fraction of
-# their width (or is hidden that much) in any frame.
-_CLEARANCE, _MAX_HIDDEN = 0.8, 0.3
-
-
-def _abreast_motions(config: SceneConfig, cuts: np.ndarray, cameras: CameraRig, min_camera_distance: float = 2.4,
-                     pass_offset: float = 0.6) -> dict[int, PersonMotion]:
-    """Motions of ``config.abreast_pair`` (and of a crossing partner passing them), by person index.
-
-    The pair walks away from the cameras of the first cut, 30 degrees off their mean floor view direction
-    (to a side drawn from the pair's own random stream), the midpoint passing 0.3 m beyond the scene centre
-    at the cut. They walk only where both stay inside ``config.motion.region`` and at least
-    ``min_camera_distance`` from those cameras, standing together before and after. Where one of them would
-    hide the other from some frame's camera, the other side and then 20 and 40 degrees are tried. A crossing
-    partner walks the other way on a line ``pass_offset`` outside its abreast person's, passing them at the
-    cut, within the same limits.
-    """
-    rng = np.random.default_rng([config.seed, 2])
-    cut = int(cuts[0]) if cuts.size else config.num_frames // 2
-    views = [(0, max(cut - 1, 0))] + ([(1, cut)] if config.num_shots > 1 else [])
-    frame_camera = _frame_cameras(config, cameras, cuts)
-    centres = frame_camera[[f for _, f in views]]
-    forward = sum(cameras.R[k, f, 2, :2] for k, f in views)  # camera +z (viewing axis) on the floor
-    forward = forward / np.linalg.norm(forward)
-    a, b = config.abreast_pair
-    partner = passed = None
-    if config.crossing_pair is not None and set(config.crossing_pair) & {a, b}:
-        passed = next(p for p in config.crossing_pair if p in (a, b))
-        partner = next(p for p in config.crossing_pair if p != passed)
-
-    def walkable(points: list[np.ndarray], direction: np.ndarray) -> tuple[float, float] | None:
-        """The stretch around 0 of the lines through ``points`` (signed distance along ``direction``)
-        where every point stays in the region and away from the cameras; None when 0 is not in it."""
-        s = np.linspace(-8.0, 8.0, 1601)
-        ok = np.ones_like(s, bool)
-        for point in points:
-            pos = point[None] + s[:, None] * direction[None]
-            ok &= np.all(np.abs(pos) <= np.asarray(config.motion.region), axis=1)
-            ok &= np.linalg.norm(pos[:, None] - centres[None], axis=2).min(axis=1) >= min_camera_distance
-        zero = len(s) // 2
-        if not ok[zero]:
-            return None
-        lo = zero - np.argmin(ok[zero::-1]) + 1 if not ok[:zero + 1].all() else 0
-        hi = zero + np.argmin(ok[zero:]) - 1 if not ok[zero:].all() else len(s) - 1
-        return float(s[lo]), float(s[hi])
-
-    side = float(rng.choice([-1.0, 1.0]))
-    speed = float(np.clip(config.motion.walk_speed + config.motion.walk_speed_spread * rng.standard_normal(),
-                          0.5, 1.8))
-    partner_speed = float(np.clip(config.motion.walk_speed + config.motion.walk_speed_spread
-                                  * rng.standard_normal(), 0.5, 1.8))
-    phase_seed = int(rng.integers(2**31))
-    at_time = cut / config.fps
-    for offset_deg, sign in itertools.product((30.0, 20.0, 40.0), (side, -side)):
-        heading = float(np.arctan2(forward[1], forward[0]) + sign * np.deg2rad(offset_deg))
-        along = np.array([np.cos(heading), np.sin(heading)])
-        left = np.array([-along[1], along[0]])
-        through = 0.3 * forward
-        lines = {a: through + 0.5 * config.abreast_spacing * left, b: through - 0.5 * config.abreast_spacing * left}
-        path = walkable([lines[a], lines[b]], along)
-        if path is None:
-            continue
-        gait = np.random.default_rng(phase_seed)  # the same gait phases whichever heading is taken
-        pair = walk_abreast(through, heading, at_time, config.abreast_spacing, config.num_frames, config.fps, gait,
-                            config.motion, speed=speed, path=path)
-        if _hidden_fraction(pair[0].position, pair[1].position, frame_camera).max() > _MAX_HIDDEN:
-            continue
-        out = {a: pair[0], b: pair[1]}
-        if partner is not None:
-            outward = (lines[passed] - through) / np.linalg.norm(lines[passed] - through)
-            partner_line = lines[passed] + pass_offset * outward
-            partner_path = walkable([partner_line], -along)
-            if partner_path is None:
-                continue
-            out[partner] = straight_walk(partner_line, heading + np.pi, at_time, config.num_frames, config.fps,
-                                         partner_speed, gait, config.motion, path=partner_path)
-        return out
-    raise InputError(f"scene {config.name or 'config'}: abreast_pair cannot walk through the scene centre, "
-                     f"both in view, inside motion.region {config.motion.region}")
-
-
-def _walk_clear_of(config: SceneConfig, rng: np.random.Generator, person: int, scripted: dict[int, PersonMotion],
-                   presence: np.ndarray, cameras: CameraRig, cuts: np.ndarray, tries: int = 200) -> PersonMotion:
-    """A random walk (start and three waypoints in the region) that keeps out of the ``scripted`` people's way.
-
-    Walks are drawn until one keeps ``_CLEARANCE`` from every scripted person and neither hides the other
-    more than ``_MAX_HIDDEN`` in any frame both are present; after ``tries`` draws the one with the fewest
-    frames too close, then hiding within a second of a cut, then hiding at all, is taken (a passer-by may
-    briefly hide someone mid-shot, not at a cut). Without scripted people this is the first draw.
-    """
-    region = np.asarray(config.motion.region)
-    frame_camera = _frame_cameras(config, cameras, cuts) if scripted else None
-    near_cut = np.zeros(config.num_frames, bool)
-    for cut in cuts:
-        near_cut[max(0, int(cut) - round(config.fps)):int(cut) + round(config.fps)] = True
-    best, best_bad = None, (np.inf, np.inf, np.inf)
-    for _ in range(tries):
-        start = rng.uniform(-1, 1, 2) * region
-        waypoints = [rng.uniform(-1, 1, 2) * region for _ in range(3)]
-        walk = simulate_walk(start, waypoints, config.num_frames, config.fps, rng, config.motion)
-        close = np.zeros(config.num_frames, bool)
-        hidden = np.zeros(config.num_frames, bool)
-        for q, other in scripted.items():
-            both = presence[person] & presence[q]
-            close |= both & (np.linalg.norm(walk.position - other.position, axis=1) < _CLEARANCE)
-            hidden |= both & (_hidden_fraction(walk.position, other.position, frame_camera) > _MAX_HIDDEN)
-        score = (int(close.sum()), int((hidden & near_cut).sum()), int(hidden.sum()))
-        if score == (0, 0, 0):
-            return walk
-        if score < best_bad:
-            best, best_bad = walk, score
-    return best
 
 
 def _clear_around(room: Room, camera_centres: np.ndarray, clearance: float = 0.6) -> Room:

@@ -9,6 +9,7 @@ import smplx
 import torch
 
 from multithumbs.body import model as body_model
+from multithumbs.body import smpl_files
 from multithumbs.body.model import BodyModel, convert_smpl_pickle, load_body_model
 from multithumbs.body.procedural import build_procedural_smpl, write_procedural_smpl
 from multithumbs.conventions import SMPL_PARENTS
@@ -272,7 +273,7 @@ def test_missing_or_broken_files_raise_input_errors(tmp_path, monkeypatch):
 def test_a_plain_pickle_is_read_by_smplx(body, arrays, tmp_path):
     path = tmp_path / "body.pkl"
     with open(path, "wb") as file:
-        pickle.dump({k: arrays[k] for k in body_model._REQUIRED}, file)
+        pickle.dump({k: arrays[k] for k in smpl_files._REQUIRED}, file)
     mine = BodyModel(path)
     assert isinstance(mine.smpl, smplx.SMPL) and mine.vertex_ids == body.vertex_ids
     generator = torch.Generator().manual_seed(8)
@@ -288,7 +289,7 @@ def write_chumpy_pickle(arrays, path, monkeypatch):
     with monkeypatch.context() as mp:
         mp.setitem(sys.modules, "chumpy", chumpy)
         mp.setitem(sys.modules, "chumpy.ch", ch)
-        data = {k: arrays[k] for k in body_model._REQUIRED}
+        data = {k: arrays[k] for k in smpl_files._REQUIRED}
         for key in ("shapedirs", "v_template"):
             data[key] = ch.Ch()
             data[key].__dict__.update(x=arrays[key], _dirty_vars=set())
