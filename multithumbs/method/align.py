@@ -335,7 +335,6 @@ def _align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignCon
             moved = (point_cam[1] - registration.t[1]) @ registration.R[1]
             maps[1] = np.where(follow[1][..., None], moved, maps[1])
             R0, t0 = registration.R, registration.t
-    orient, pelvis = _camera_frame_roots(people, R0, t0)
     common = dict(cut_frame=space.cut_frame, present=people.present, track_index=people.track_index,
                   track_frame=people.track_frame, scale=scale,
                   point_map=maps, point_valid=valid, cameras_from=cameras_from, people_pairs=people_pairs)
@@ -351,6 +350,7 @@ def _align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignCon
             orient[1, j], pelvis[1, j] = rot, root
         return AlignedBoundary(R=R0, t=t0, orient=orient, pelvis=pelvis, method="no_align" if skip else "people",
                                **common)
+    orient, pelvis = _camera_frame_roots(people, R0, t0)
     if skip:
         return AlignedBoundary(R=R0, t=t0, orient=orient, pelvis=pelvis, method="no_align", **common)
     if config.staged:

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from multithumbs.geometry import (Similarity, axis_angle_to_matrix, camera_centre, transform_cameras, unproject)
+from multithumbs.geometry import (Similarity, axis_angle_to_matrix, camera_centre, project, transform_cameras,
+                                  unproject)
 from multithumbs.synth.scene import SyntheticVideo
 from multithumbs.types import CameraTrajectory, SharedSpace
 
@@ -65,7 +66,7 @@ def shared_background(video: SyntheticVideo, cut_index: int, stride: int = 4, to
         world_pts = (unproject(pix, depth[room], world.K[f]) - world.t[f]) @ world.R[f]
         cam = world_pts @ world.R[g].T + world.t[g]
         z = cam[:, 2]
-        uv = cam[:, :2] / np.maximum(z, 1e-9)[:, None] * world.K[g][[0, 1], [0, 1]] + world.K[g][:2, 2]
+        uv = project(cam, world.K[g])
         ui, vi = np.round(uv[:, 0]).astype(int), np.round(uv[:, 1]).astype(int)
         seen = (z > 1e-6) & (ui >= 0) & (ui < w) & (vi >= 0) & (vi < h)
         other = video.boundary_depth[cut_index, 1 - k]
