@@ -9,6 +9,7 @@ import socket
 import subprocess
 import sys
 import time
+import urllib.error
 import urllib.request
 from pathlib import Path
 
@@ -20,6 +21,27 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+# The server answers 503 for errors a client may retry (a busy SQLite database); Prefect's own client
+# retries 429, 502 and 503 with backoff (prefect/client/base.py, PrefectHttpxAsyncClient), so REST calls
+# made here do the same instead of failing a test on a momentarily locked database.
+RETRYABLE = {429, 502, 503}
+
+
+def call_api(url: str, method: str = "GET", body: dict | None = None, attempts: int = 6):
+    """JSON from a REST call to the Prefect API, retried with backoff on the codes Prefect's client retries."""
+    request = urllib.request.Request(url, method=method, data=None if body is None else json.dumps(body).encode(),
+                                     headers={"Content-Type": "application/json"})
+    for attempt in range(attempts):
+        try:
+            with urllib.request.urlopen(request, timeout=30) as response:
+                text = response.read()
+            return json.loads(text) if text else None
+        except urllib.error.HTTPError as error:
+            if error.code not in RETRYABLE or attempt == attempts - 1:
+                raise
+            time.sleep(min(2.0 ** attempt, 10.0))
 
 
 def healthy(url: str) -> bool:
@@ -81,12 +103,7 @@ class Stack:
         return done.stdout
 
     def api(self, method: str, path: str, body: dict | None = None):
-        request = urllib.request.Request(f"{self.api_url}{path}", method=method,
-                                         data=None if body is None else json.dumps(body).encode(),
-                                         headers={"Content-Type": "application/json"})
-        with urllib.request.urlopen(request, timeout=30) as response:
-            text = response.read()
-        return json.loads(text) if text else None
+        return call_api(f"{self.api_url}{path}", method, body)
 
     def flow_runs(self, deployment_id: str) -> list[dict]:
         return self.api("POST", "/flow_runs/filter", {"deployments": {"id": {"any_": [deployment_id]}}})

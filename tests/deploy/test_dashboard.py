@@ -3,7 +3,6 @@ to it (no server of its own) and shows in it; stopping it (Ctrl-C) removes its r
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
@@ -12,7 +11,7 @@ import time
 
 import pytest
 
-from tests.deploy.stack import free_port, healthy
+from tests.deploy.stack import call_api, free_port, healthy
 
 
 @pytest.mark.slow  # ~2 min on a busy 2-core machine: two scenes, a server, a flow run
@@ -49,11 +48,7 @@ def test_cli_runs_show_in_the_dashboard(tmp_path):
         log = run.stderr.split("(details: ")[1].rstrip(")\n")
         # Sent to the dashboard, not to a server of its own (both would write the same database).
         assert f"Prefect API: dashboard at {api}" in open(log).read()
-        import urllib.request
-
-        request = urllib.request.Request(f"{api}/flow_runs/filter", data=b"{}", method="POST",
-                                         headers={"Content-Type": "application/json"})
-        runs = json.loads(urllib.request.urlopen(request, timeout=30).read())
+        runs = call_api(f"{api}/flow_runs/filter", "POST", {})
         assert [r["state_type"] for r in runs if r["flow_id"]] == ["FAILED"], runs
     finally:
         if dashboard.poll() is None:
