@@ -79,7 +79,7 @@ def score_scene(name: str, fit: bool = True) -> dict:
         h, w = video.truth.world.image_size
         if fit:
             start = time.perf_counter()
-            tracks = poses_to_tracks(poses, true_tr.shot_index, a, K, (h, w), body, config.fit)
+            tracks = poses_to_tracks(poses, true_tr.shot_index, a, K, (h, w), body, config.fit, config.facing)
             seconds["fitting"] += time.perf_counter() - start
             pred_kp = tracks.keypoints2d
             with torch.no_grad():

@@ -82,12 +82,32 @@ PIXEL_BACKENDS = {"shots": "scenedetect:adaptive on the encoded video", "percept
                   "camera_tracking": "pycolmap", "shared_space": "pycolmap"}
 
 
-def pixel_inputs(video, body, seconds: dict[str, float] | None = None, withhold_focal: bool = False):
-    """The method's inputs of a rendered scene with nothing simulated (:data:`INPUT_SOURCES`).
+PIXEL_STAGES = ("shots", "perception", "camera_tracking", "shared_space")
+"""The input stages ``bench --from-pixels`` computes from the frames; ``--pixel-stages`` takes a subset, the
+others simulated as in the simulated suite (the stage-by-stage swap of ``docs/RESULTS.md``)."""
+
+
+def checked_pixel_stages(names: str | Sequence[str] | None) -> tuple[str, ...]:
+    """The stages named (comma-separated or a sequence; ``None``: all of :data:`PIXEL_STAGES`), checked."""
+    if names is None:
+        return PIXEL_STAGES
+    listed = [n.strip() for n in (names.split(",") if isinstance(names, str) else names) if n.strip()]
+    unknown = [n for n in listed if n not in PIXEL_STAGES]
+    if unknown or not listed:
+        raise InputError(f"pixel stages {','.join(unknown) or '(none)'}: expected some of {', '.join(PIXEL_STAGES)}")
+    return tuple(n for n in PIXEL_STAGES if n in listed)
+
+
+def pixel_inputs(video, body, seconds: dict[str, float] | None = None, withhold_focal: bool = False,
+                 stages: Sequence[str] = PIXEL_STAGES, seed: int = 0):
+    """The method's inputs of a rendered scene with the ``stages`` (of :data:`PIXEL_STAGES`) computed from
+    the pixels and the others simulated from the truth (all four: nothing simulated, :data:`INPUT_SOURCES`).
 
     The frames are encoded as MPEG-4 and decoded again, as a user's video would be. Intrinsics are the
     true ones, or with ``withhold_focal`` estimated as ``multithumbs run`` estimates them for a video
     without ``--intrinsics`` (``backends["focal"]`` says from what, and ``seconds["focal"]`` how long).
+    Simulated perception keeps the true cuts, so a swap with ``shots`` from the pixels and perception
+    simulated needs the detected cuts to be the true ones.
     Returns ``(shots, tracks, trajectories, spaces, backends)``: ``backends`` names what made
     each stage (the trajectories' and spaces' own sources, fallbacks included); ``seconds`` (when given)
     receives each stage's wall time.
@@ -101,16 +121,23 @@ def pixel_inputs(video, body, seconds: dict[str, float] | None = None, withhold_
     from multithumbs.scene.geometry import scene_geometry
     from multithumbs.scene.shots import detect_shots
     from multithumbs.synth.files import write_video
+    from multithumbs.synth.perception import simulate_perception
+    from multithumbs.synth.simulated_geometry import simulate_camera_trajectory, simulate_shared_space
     from multithumbs.video import read_frames
 
+    stages = checked_pixel_stages(stages)
     seconds = {} if seconds is None else seconds
     K = video.truth.world.K[0]
     with tempfile.TemporaryDirectory(prefix="mt_pixels_") as tmp:
         path = write_video(Path(tmp) / "video.mp4", video.frames, video.truth.world.fps)
         start = time.perf_counter()
-        shots = detect_shots(path)
+        shots = detect_shots(path) if "shots" in stages else video.truth.world.shots()
         seconds["shots"] = time.perf_counter() - start
         frames = read_frames(path)
+    exact = np.array_equal(shots.cut_frames, video.truth.world.cut_frames)
+    if not exact and "perception" not in stages:
+        raise InputError(f"the detected cuts {shots.cut_frames.tolist()} are not the true "
+                         f"{video.truth.world.cut_frames.tolist()}, and simulated perception needs the true ones")
     focal = None
     if withhold_focal:
         from multithumbs.scene.focal import estimate_focal, motion_estimate
@@ -121,27 +148,42 @@ def pixel_inputs(video, body, seconds: dict[str, float] | None = None, withhold_
         h, w = frames.shape[1:3]
         K = default_intrinsics(w, h) if motion[0] is None else motion[0].K(w, h)
         seconds["focal"] = time.perf_counter() - start
-    tracks, split = blazepose_tracks(iter(frames), shots, K, body)
-    seconds["perception_landmarks"], seconds["perception_fitting"] = split.landmarks, split.fitting
-    start = time.perf_counter()
-    tracks = fill_appearance(tracks, frames)
-    seconds["appearance"] = time.perf_counter() - start
+    if "perception" in stages:
+        tracks, split = blazepose_tracks(iter(frames), shots, K, body)
+        seconds["perception_landmarks"], seconds["perception_fitting"] = split.landmarks, split.fitting
+        start = time.perf_counter()
+        tracks = fill_appearance(tracks, frames)
+        seconds["appearance"] = time.perf_counter() - start
+    else:
+        tracks = simulate_perception(video, body, seed=seed)
     if withhold_focal:
         focal = estimate_focal(frames, shots.ranges, tracks=tracks, motion=motion)
         K = focal.K(w, h)  # the tracks keep the K they were fitted in: the method re-expresses them
-    masks = np.concatenate([tr.people_mask() for tr in tracks])
-    geometry = scene_geometry(frames, shots, K, masks)
-    seconds["camera_tracking"] = geometry.seconds.get("trajectories", math.nan)
-    seconds["shared_space"] = geometry.seconds.get("spaces", math.nan)
-    backends = {"shots": f"{shots.source} ({'exact' if np.array_equal(shots.cut_frames, video.truth.world.cut_frames) else 'cuts differ'})",
-                "perception": PIXEL_BACKENDS["perception"],
-                "camera_tracking": ", ".join(sorted({t.source for t in geometry.trajectories})),
-                "shared_space": ", ".join(sorted({s.source + (f" -> {s.fallback}" if s.fallback else "")
-                                                  for s in geometry.spaces})) or "none (one shot)"}
+    trajectories = [simulate_camera_trajectory(video, k, seed=seed) for k in range(shots.num_shots)]
+    spaces = [simulate_shared_space(video, c, seed=seed) for c in range(len(shots.cut_frames))]
+    if "camera_tracking" in stages or "shared_space" in stages:
+        masks = np.concatenate([tr.people_mask() for tr in tracks])
+        geometry = scene_geometry(frames, shots, K, masks)
+        seconds["camera_tracking"] = geometry.seconds.get("trajectories", math.nan)
+        seconds["shared_space"] = geometry.seconds.get("spaces", math.nan)
+        if "camera_tracking" in stages:
+            trajectories = list(geometry.trajectories)
+        if "shared_space" in stages:
+            spaces = list(geometry.spaces)
+    backends = dict(BACKENDS)
+    if "shots" in stages:
+        backends["shots"] = f"{shots.source} ({'exact' if exact else 'cuts differ'})"
+    if "perception" in stages:
+        backends["perception"] = PIXEL_BACKENDS["perception"]
+    if "camera_tracking" in stages:
+        backends["camera_tracking"] = ", ".join(sorted({t.source for t in trajectories}))
+    if "shared_space" in stages:
+        backends["shared_space"] = ", ".join(sorted({s.source + (f" -> {s.fallback}" if s.fallback else "")
+                                                     for s in spaces})) or "none (one shot)"
     if focal is not None:
         truth = float(video.truth.world.K[0, 0, 0])
         backends["focal"] = f"{focal.line()}; truth {truth:.0f} px, error {100 * (focal.focal_px / truth - 1):+.1f} %"
-    return shots, tracks, list(geometry.trajectories), list(geometry.spaces), backends
+    return shots, tracks, trajectories, spaces, backends
 
 
 def through_phalp_file(tracks: Sequence, video, body) -> list:
@@ -172,10 +214,12 @@ def through_phalp_file(tracks: Sequence, video, body) -> list:
 
 def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: MethodConfig = MethodConfig(),
                       seed: int = 0, seconds: dict[str, float] | None = None, perception: str = "direct",
-                      inputs: str = "simulated", stages: dict[str, Any] | None = None):
+                      inputs: str = "simulated", stages: dict[str, Any] | None = None,
+                      pixel_stages: Sequence[str] = PIXEL_STAGES):
     """Synthesise one scene and run the variants on shared stages (module docstring); ``perception`` is
     one of :data:`PERCEPTION_ROUTES` (simulated inputs only), ``inputs`` one of :data:`INPUT_SOURCES`;
-    ``stages`` (when given) receives ``"backends"`` and ``"seconds"`` of the input stages.
+    ``stages`` (when given) receives ``"backends"`` and ``"seconds"`` of the input stages; with pixel
+    inputs, ``pixel_stages`` are computed from the frames and the others simulated (:func:`pixel_inputs`).
 
     Returns:
         the scene's :class:`~multithumbs.types.GroundTruth` and variant -> its
@@ -193,7 +237,8 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
     if inputs in ("pixels", "pixels_no_focal"):
         stage_seconds: dict[str, float] = {}
         shots, tracks, trajectories, spaces, backends = pixel_inputs(video, body, stage_seconds,
-                                                                     withhold_focal=inputs == "pixels_no_focal")
+                                                                     withhold_focal=inputs == "pixels_no_focal",
+                                                                     stages=pixel_stages, seed=seed)
         if stages is not None:
             stages.update(backends=backends, seconds=stage_seconds)
     elif inputs != "simulated":
@@ -240,7 +285,8 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
 
 
 def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: MethodConfig = MethodConfig(),
-              seed: int = 0, perception: str = "direct", inputs: str = "simulated") -> SceneScores:
+              seed: int = 0, perception: str = "direct", inputs: str = "simulated",
+              pixel_stages: Sequence[str] = PIXEL_STAGES) -> SceneScores:
     """Synthesise one scene, run the variants on shared stages, score them."""
     from multithumbs.body.model import load_body_model
     from multithumbs.metrics.evaluate import evaluate
@@ -248,7 +294,8 @@ def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: Met
     body = load_body_model()
     seconds: dict[str, float] = {}
     stages: dict[str, Any] = {}
-    truth, results = run_scene_results(config, variants, body, base, seed, seconds, perception, inputs, stages)
+    truth, results = run_scene_results(config, variants, body, base, seed, seconds, perception, inputs, stages,
+                                       pixel_stages)
     metrics, labels = {}, {}
     for name, result in results.items():
         metrics[name], labels[name] = scene_metrics(evaluate(result, truth, body))
@@ -277,27 +324,30 @@ def _init_worker(threads: int) -> None:
 def run_suite(configs: Sequence[SceneConfig], variants: Sequence[str] = VARIANTS, workers: int | None = None,
               base: MethodConfig = MethodConfig(),
               progress: Callable[[SceneScores, int, int], None] | None = None,
-              perception: str = "direct", inputs: str = "simulated") -> list[SceneScores]:
+              perception: str = "direct", inputs: str = "simulated",
+              pixel_stages: Sequence[str] = PIXEL_STAGES) -> list[SceneScores]:
     """Run every scene (in ``workers`` processes; default: one per core) and return their scores in order;
-    ``perception`` and ``inputs`` as :func:`run_scene_results`."""
+    ``perception``, ``inputs`` and ``pixel_stages`` as :func:`run_scene_results`."""
     for v in variants:
         variant_config(v)  # unknown names fail before any work
     if inputs not in INPUT_SOURCES:
         raise InputError(f"inputs {inputs!r}: expected one of {', '.join(INPUT_SOURCES)}")
+    pixel_stages = checked_pixel_stages(pixel_stages)
     if perception not in PERCEPTION_ROUTES:
         raise InputError(f"--perception-file {perception!r}: expected one of {', '.join(PERCEPTION_ROUTES)}")
     workers = workers or max(1, min(len(configs), os.cpu_count() or 1))
     if workers == 1:
         out = []
         for i, c in enumerate(configs):
-            out.append(run_scene(c, variants, base, perception=perception, inputs=inputs))
+            out.append(run_scene(c, variants, base, perception=perception, inputs=inputs, pixel_stages=pixel_stages))
             if progress:
                 progress(out[-1], i + 1, len(configs))
         return out
     results: dict[str, SceneScores] = {}
     # One torch thread per worker: the optimisations are small-op bound, processes scale better.
     with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=(1,)) as pool:
-        futures = {pool.submit(run_scene, c, variants, base, 0, perception, inputs): c.name for c in configs}
+        futures = {pool.submit(run_scene, c, variants, base, 0, perception, inputs, pixel_stages): c.name
+                   for c in configs}
         for done, future in enumerate(as_completed(futures), 1):
             scores = future.result()
             results[scores.scene] = scores

@@ -82,3 +82,25 @@ def test_unknown_input_source_is_refused():
 
     with pytest.raises(InputError, match="inputs 'rendered'"):
         run_suite([SceneConfig(num_frames=8)], ["full"], inputs="rendered")
+
+
+def test_one_stage_from_the_pixels_the_others_simulated():
+    from multithumbs.bench import BACKENDS
+
+    config = SceneConfig(num_people=2, num_shots=2, num_frames=12, seed=5, image_size=(180, 320), cut_angle_deg=30)
+    scores = run_scene(config, ["full"], FAST, inputs="pixels", pixel_stages=("camera_tracking",))
+    assert scores.backends["perception"] == BACKENDS["perception"]
+    assert scores.backends["shared_space"] == BACKENDS["shared_space"]
+    assert not scores.backends["camera_tracking"].startswith("simulated")
+    assert scores.backends["shots"] == BACKENDS["shots"]
+    assert "perception_landmarks" not in scores.stage_seconds and "camera_tracking" in scores.stage_seconds
+    assert np.isfinite(scores.metrics["full"]["w_mpjpe"])
+
+
+def test_unknown_pixel_stage_is_refused():
+    from multithumbs.bench import checked_pixel_stages, run_suite
+    from multithumbs.errors import InputError
+
+    assert checked_pixel_stages("shared_space, perception") == ("perception", "shared_space")
+    with pytest.raises(InputError, match="pixel stages cameras: expected some of shots, perception"):
+        run_suite([SceneConfig(num_frames=8)], ["full"], inputs="pixels", pixel_stages="cameras")

@@ -7,7 +7,9 @@ The ``blazepose`` perception source (the default of ``multithumbs run``). For ea
 2. the 33 landmarks become SMPL-order 2D keypoints with BlazePose's visibility as confidence, and its
    world landmarks the matching 3D joints (:func:`multithumbs.perception.joints.blazepose33_to_smpl24`);
 3. :func:`multithumbs.perception.body_fit.fit_bodies` fits the body model to both in the scene's
-   intrinsics, batched over the shot's people and frames.
+   intrinsics, batched over the shot's people and frames;
+4. frames where a fitted body faces away from where it walks are read as BlazePose's front/back
+   confusion: their landmarks are mirrored and the shot is fitted again (:mod:`.facing`).
 
 Masks come from BlazePose's segmentation. Appearance is described afterwards from the pixels, as for every
 source (:mod:`.appearance`). Frames where a person was not followed stay invalid.
@@ -23,7 +25,8 @@ from typing import Iterable
 import numpy as np
 
 from multithumbs.appearance import DESCRIPTOR_SIZE
-from multithumbs.perception.body_fit import BodyFitConfig, fit_bodies
+from multithumbs.perception.body_fit import BodyFitConfig, FittedBodies, fit_bodies
+from multithumbs.perception.facing import FacingConfig, body_forward, facing_flips, mirrored, root_velocity
 from multithumbs.perception.joints import blazepose33_to_smpl24
 from multithumbs.perception.pose_tracking import ShotPoses, TrackerConfig, track_shot
 from multithumbs.types import PersonTracks, Shots
@@ -38,6 +41,8 @@ class BlazePoseConfig:
     """How bodies are fitted to the landmarks. BlazePose's world landmarks are off by ~10 cm per joint
     after Procrustes on the suite's people (``benchmarks/cpu_perception.py``), so the 3D term is trusted
     to σ = 20 cm (weight 1/σ²), not the 5 cm of :class:`BodyFitConfig`'s default."""
+    facing: FacingConfig = field(default_factory=FacingConfig)
+    """When a reading is taken for a back seen as a front and mirrored (PCK 0.841 -> see docs/RESULTS.md)."""
     num_threads: int = 2
     """Threads of each tflite interpreter."""
 
@@ -58,17 +63,44 @@ class StageSeconds:
     """Frames processed."""
 
 
+def _fit(image: np.ndarray, world: np.ndarray, valid: np.ndarray, K: np.ndarray, body,
+         config: BodyFitConfig) -> tuple[np.ndarray, FittedBodies]:
+    """SMPL-order keypoints of BlazePose's landmarks and the bodies fitted to them (steps 2–3)."""
+    visibility = image[..., 3:4]
+    keypoints = blazepose33_to_smpl24(np.concatenate([image[..., :2], visibility], axis=-1))
+    joints3d = blazepose33_to_smpl24(np.concatenate([world, visibility], axis=-1))
+    keypoints = np.where(valid[..., None, None], keypoints, 0.0)
+    joints3d = np.where(valid[..., None, None], joints3d, 0.0)
+    return keypoints, fit_bodies(keypoints, joints3d, valid, K, body, config)
+
+
+def mirror_flips(fitted: FittedBodies, valid: np.ndarray, body, config: FacingConfig) -> np.ndarray:
+    """``(P, T)`` bool: frames whose fitted body faces away from its walk (step 4)."""
+    if not config.enabled or not valid.any():
+        return np.zeros(valid.shape, bool)
+    import torch
+
+    with torch.no_grad():
+        joints = body.joints(fitted.global_orient, fitted.body_pose, fitted.betas, fitted.transl).double().numpy()
+    return facing_flips(body_forward(joints), root_velocity(fitted.transl, valid, config.window), valid, config)
+
+
 def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.ndarray, image_size: tuple[int, int],
-                    body=None, config: BodyFitConfig | None = None) -> PersonTracks:
-    """One shot's :class:`PersonTracks` from the people BlazePose followed (module docstring, steps 2–3)."""
+                    body=None, config: BodyFitConfig | None = None,
+                    facing: FacingConfig = FacingConfig()) -> PersonTracks:
+    """One shot's :class:`PersonTracks` from the people BlazePose followed (module docstring, steps 2–4)."""
     p, t = poses.valid.shape
     h, w = image_size
-    visibility = poses.image[..., 3:4]
-    keypoints = blazepose33_to_smpl24(np.concatenate([poses.image[..., :2], visibility], axis=-1))
-    joints3d = blazepose33_to_smpl24(np.concatenate([poses.world, visibility], axis=-1))
-    keypoints = np.where(poses.valid[..., None, None], keypoints, 0.0)
-    joints3d = np.where(poses.valid[..., None, None], joints3d, 0.0)
-    fitted = fit_bodies(keypoints, joints3d, poses.valid, K, body, config or BlazePoseConfig().fit)
+    if body is None:
+        from multithumbs.body.model import load_body_model
+
+        body = load_body_model()
+    config = config or BlazePoseConfig().fit
+    keypoints, fitted = _fit(poses.image, poses.world, poses.valid, K, body, config)
+    flips = mirror_flips(fitted, poses.valid, body, facing)
+    if flips.any():
+        image, world = mirrored(poses.image, poses.world, flips)
+        keypoints, fitted = _fit(image, world, poses.valid, K, body, config)
     return PersonTracks(
         shot_index=shot_index, start_frame=start_frame, track_ids=poses.track_ids,
         global_orient=fitted.global_orient, body_pose=fitted.body_pose, betas=fitted.betas, transl=fitted.transl,
@@ -118,7 +150,7 @@ def blazepose_tracks(frames: Iterable[np.ndarray], shots: Shots, K: np.ndarray, 
         calls["detector"] += poses.detector_calls
         calls["landmark"] += poses.landmark_calls
         start = time.perf_counter()
-        out.append(poses_to_tracks(poses, k, a, K, image_size, body, config.fit))
+        out.append(poses_to_tracks(poses, k, a, K, image_size, body, config.fit, config.facing))
         seconds["fitting"] += time.perf_counter() - start
     return out, StageSeconds(seconds["landmarks"], seconds["fitting"], calls["detector"], calls["landmark"],
                              shots.num_frames)

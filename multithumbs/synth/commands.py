@@ -120,11 +120,15 @@ def register(app: typer.Typer) -> None:
         withhold_focal: bool = typer.Option(False, "--withhold-focal",
                                             help="With --from-pixels: withhold the true focal length and "
                                                  "estimate it from the pixels, as 'multithumbs run' does."),
+        pixel_stages: Optional[str] = typer.Option(None, "--pixel-stages",
+                                                   help="With --from-pixels: only these stages from the pixels, "
+                                                        "the others simulated (comma-separated of shots, "
+                                                        "perception, camera_tracking, shared_space; default all)."),
     ) -> None:
         """Run a synthetic suite with the full method, each ablation and each baseline; print the metrics."""
         import time
 
-        from multithumbs.bench import BACKENDS, METRIC_KEYS, check_variants, run_suite, summarize
+        from multithumbs.bench import BACKENDS, METRIC_KEYS, check_variants, checked_pixel_stages, run_suite, summarize
         from multithumbs.pipeline import VARIANTS
         from multithumbs.synth.suite import suite, suite_scene
 
@@ -137,12 +141,15 @@ def register(app: typer.Typer) -> None:
                              "simulated perception only")
         if withhold_focal and not from_pixels:
             raise InputError("--withhold-focal: only with --from-pixels (simulated inputs use the true cameras)")
+        if pixel_stages is not None and not from_pixels:
+            raise InputError("--pixel-stages: only with --from-pixels")
+        stages = checked_pixel_stages(pixel_stages)
         inputs = ("pixels_no_focal" if withhold_focal else "pixels") if from_pixels else "simulated"
         start = time.perf_counter()
         with _progress() as bar:
             task = bar.add_task(f"suite {suite_name}" + (" from pixels" if from_pixels else ""), total=len(configs))
             results = run_suite(configs, names, workers, progress=lambda s, done, total: bar.update(task, completed=done),
-                                perception=perception_file, inputs=inputs)
+                                perception=perception_file, inputs=inputs, pixel_stages=stages)
         summary = summarize(results, names)
         elapsed = time.perf_counter() - start
         if from_pixels:
@@ -178,12 +185,15 @@ def register(app: typer.Typer) -> None:
 def _print_pixels_bench(suite_name, configs, names, results, summary, simulated, elapsed, as_json) -> None:
     """``bench --from-pixels``: the nothing-simulated figures, scene by scene beside the simulated ones, and
     which backend produced each input stage of each scene, with its seconds."""
-    from multithumbs.bench import METRIC_KEYS, PIXEL_BACKENDS
+    from multithumbs.bench import METRIC_KEYS
     from multithumbs.cli_format import output_console, split_metric_tables
     from multithumbs.metrics.evaluate import METRIC_UNITS
 
+    # What made each stage over the suite (a stage's source may differ by scene: fallbacks).
+    backends = {k: " | ".join(sorted({r.backends[k] for r in results if k in r.backends}))
+                for k in ("shots", "perception", "camera_tracking", "shared_space")}
     meta = {"suite": suite_name, "scenes": [c.name for c in configs], "seconds": elapsed,
-            "backends": PIXEL_BACKENDS, "backends_per_scene": {r.scene: r.backends for r in results},
+            "backends": backends, "backends_per_scene": {r.scene: r.backends for r in results},
             "stage_seconds": {r.scene: r.stage_seconds for r in results}}
     if as_json:
         print(json.dumps(_jsonable({"pixels": summary, "simulated": simulated, "_meta": meta}), indent=1,
@@ -193,7 +203,7 @@ def _print_pixels_bench(suite_name, configs, names, results, summary, simulated,
     means = {v: {k: summary[v][k]["mean"] for k in METRIC_KEYS} for v in names}
     for table in split_metric_tables(out, f"suite {suite_name} from pixels: {len(configs)} scenes, {elapsed:.0f} s, "
                                      f"means", "variant", means, METRIC_KEYS, METRIC_UNITS,
-                                     caption="backends: " + "; ".join(f"{k} {v}" for k, v in PIXEL_BACKENDS.items())):
+                                     caption="backends: " + "; ".join(f"{k} {v}" for k, v in backends.items())):
         out.print(table)
     shown = [v for v in ("full", "no_align", "independent_shots") if v in names] or list(names)[:1]
     table = Table(title="W-MPJPE (mm) and IDs per scene: pixels / simulated", box=box.SIMPLE_HEAD)

@@ -1,0 +1,108 @@
+"""Front/back confusions resolved by the walk: the mirror, forward and velocity algebra, and the backend's
+step 4 on a person seen from behind whom the landmarks read as facing the camera."""
+
+import numpy as np
+import pytest
+import torch
+
+from multithumbs.perception.facing import (BLAZEPOSE_MIRROR, FacingConfig, body_forward, facing_flips, mirrored,
+                                           root_velocity)
+from multithumbs.perception.joints import BLAZEPOSE33_TO_SMPL24
+from multithumbs.perception.pose_tracking import ShotPoses
+
+K = np.array([[500.0, 0, 320], [0, 500.0, 180], [0, 0, 1]])
+UPRIGHT_FACING_CAMERA = np.array([np.pi, 0.0, 0.0])   # SMPL's y-up body in the camera frame (+y down)
+UPRIGHT_FACING_AWAY = np.array([0.0, 0.0, np.pi])     # the same turned about the vertical
+
+
+def test_mirror_exchanges_sides_and_is_its_own_inverse():
+    order = np.asarray(BLAZEPOSE_MIRROR)
+    assert sorted(order) == list(range(33)) and np.all(order[order] == np.arange(33))
+    assert order[11] == 12 and order[23] == 24 and order[31] == 32 and order[0] == 0   # shoulders, hips, feet, nose
+    rng = np.random.default_rng(0)
+    image, world = rng.normal(size=(2, 5, 33, 5)), rng.normal(size=(2, 5, 33, 3))
+    flip = rng.random((2, 5)) < 0.5
+    once = mirrored(image, world, flip)
+    twice = mirrored(*once, flip)
+    np.testing.assert_allclose(twice[0], image, atol=1e-12)
+    np.testing.assert_allclose(twice[1], world, atol=1e-12)
+    np.testing.assert_array_equal(once[1][~flip], world[~flip])
+    p, t = np.argwhere(flip)[0]
+    np.testing.assert_array_equal(once[1][p, t, 11, :2], world[p, t, 12, :2])   # left shoulder <- right's
+    assert once[1][p, t, 11, 2] == -world[p, t, 12, 2]                           # depth through the hips
+    np.testing.assert_array_equal(once[0][p, t, 11, 3:], image[p, t, 12, 3:])    # scores go with the name
+
+
+def test_forward_of_a_body_at_rest_is_its_plus_z(body):
+    with torch.no_grad():
+        rest = body.joints(np.zeros((1, 3)), np.zeros((1, 23, 3)), np.zeros((1, 10))).double().numpy()
+        turned = body.joints(UPRIGHT_FACING_CAMERA[None], np.zeros((1, 23, 3)), np.zeros((1, 10))).double().numpy()
+    np.testing.assert_allclose(body_forward(rest)[0], [0, 0, 1], atol=0.1)  # the rest spine leans ~4°
+    np.testing.assert_allclose(body_forward(turned)[0], [0, 0, -1], atol=0.1)
+    assert body_forward(rest).shape == (1, 3)
+
+
+def test_root_velocity_is_the_slope_of_a_line_and_unknown_when_alone():
+    t = np.arange(20.0)
+    transl = np.stack([0.1 * t, 0 * t, 5 - 0.03 * t], -1)[None]
+    valid = np.ones((1, 20), bool)
+    valid[0, 5] = False
+    velocity = root_velocity(transl, valid, window=4)
+    np.testing.assert_allclose(velocity[0, valid[0]], np.tile([0.1, 0, -0.03], (19, 1)), atol=1e-12)
+    assert np.isnan(velocity[0, 5]).all()
+    lonely = np.zeros((1, 20), bool)
+    lonely[0, [3, 12]] = True
+    assert np.isnan(root_velocity(transl, lonely, window=4)).all()
+
+
+def test_flips_where_the_body_faces_away_from_its_walk():
+    forward = np.tile([0.0, 0.0, 1.0], (4, 3, 1))        # every body faces away from the camera
+    velocity = np.zeros((4, 3, 3))
+    velocity[0, :, 2] = -0.04                            # walks towards the camera: backwards, a confusion
+    velocity[1, :, 2] = 0.04                             # walks away: as it faces
+    velocity[2, :, 2] = -0.002                           # barely moves: says nothing
+    velocity[3, :, 0] = 0.04                             # walks across: says nothing
+    velocity[0, 1] = np.nan                              # motion unknown
+    valid = np.ones((4, 3), bool)
+    valid[0, 2] = False
+    flips = facing_flips(forward, velocity, valid)
+    np.testing.assert_array_equal(flips, [[True, False, False], [False] * 3, [False] * 3, [False] * 3])
+    assert not facing_flips(forward, velocity, valid, FacingConfig(enabled=False)).any()
+
+
+def _reading(body, orient: np.ndarray, transl: np.ndarray) -> ShotPoses:
+    """BlazePose-shaped landmarks of a zero-pose body: its 12 mapped joints projected, world about the hips."""
+    t = len(transl)
+    with torch.no_grad():
+        joints = body.joints(np.tile(orient, (t, 1)), np.zeros((t, 23, 3)), np.zeros((t, 10)), transl).double().numpy()
+    image, world = np.zeros((1, t, 33, 5)), np.zeros((1, t, 33, 3))
+    uv = joints @ K.T
+    for landmark, joint in BLAZEPOSE33_TO_SMPL24.items():
+        image[0, :, landmark, :2] = uv[:, joint, :2] / uv[:, joint, 2:]
+        image[0, :, landmark, 3:] = 1.0
+        world[0, :, landmark] = joints[:, joint] - 0.5 * (joints[:, 1] + joints[:, 2])
+    boxes = np.concatenate([image[..., :2].min(-2), image[..., :2].max(-2)], -1)
+    return ShotPoses(np.array([0]), image, world, boxes, np.zeros((1, t, 360, 80), np.uint8), np.ones((1, t), bool))
+
+
+@pytest.mark.parametrize("walking", [True, False])
+def test_a_back_read_as_a_front_is_mirrored_when_the_person_walks(body, walking):
+    from multithumbs.perception.blazepose_backend import poses_to_tracks
+
+    # Truth: seen from behind, walking away (or standing). The reading: the front-facing body at the same
+    # place, which projects where the back does with every side's name exchanged (BlazePose's confusion).
+    depth = 4.0 + (0.04 * np.arange(16) if walking else np.zeros(16))
+    transl = np.stack([np.zeros(16), np.full(16, 0.3), depth], -1)
+    reading = _reading(body, UPRIGHT_FACING_CAMERA, transl)
+    tracks = poses_to_tracks(reading, 0, 0, K, (360, 640), body)
+    kept = poses_to_tracks(reading, 0, 0, K, (360, 640), body, facing=FacingConfig(enabled=False))
+    left_of_right = tracks.keypoints2d[0, :, 1, 0] < tracks.keypoints2d[0, :, 2, 0]   # left hip at image left
+    assert not (kept.keypoints2d[0, :, 1, 0] < kept.keypoints2d[0, :, 2, 0]).any()
+    with torch.no_grad():
+        joints = body.joints(tracks.global_orient, tracks.body_pose, tracks.betas, tracks.transl).double().numpy()
+    facing_z = body_forward(joints)[0, :, 2]
+    if walking:   # the truth's sides and facing, in every frame the walk covers
+        assert left_of_right.all() and (facing_z > 0.5).all()
+    else:         # nothing says which reading is right: the landmarks are kept
+        assert not left_of_right.any() and (facing_z < -0.5).all()
+        np.testing.assert_array_equal(tracks.keypoints2d, kept.keypoints2d)
