@@ -18,7 +18,7 @@ import math
 import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Protocol, Sequence
 
 import numpy as np
 
@@ -26,7 +26,7 @@ from multithumbs.errors import InputError
 from multithumbs.metric_names import METRIC_KEYS  # noqa: F401  (re-exported)
 from multithumbs.pipeline import (VARIANTS, MethodConfig, Placement, align_cuts, post_processed_world, prepare_inputs,
                                   propagate, reidentify, to_world_result, variant_config, world_diagnostics)
-from multithumbs.synth.scene import SceneConfig
+from multithumbs.synth.scene import SceneConfig, config_to_json
 
 EXTRA_KEYS = ("w_mpjpe_track", "wa_mpjpe_track", "accel_world", "fs_gt", "fs_truth", "ate_mean", "ids_total",
               "ids_within_shots", "coverage")
@@ -85,6 +85,17 @@ PIXEL_BACKENDS = {"shots": "scenedetect:adaptive on the encoded video", "percept
 PIXEL_STAGES = ("shots", "perception", "camera_tracking", "shared_space")
 """The input stages ``bench --from-pixels`` computes from the frames; ``--pixel-stages`` takes a subset, the
 others simulated as in the simulated suite (the stage-by-stage swap of ``docs/RESULTS.md``)."""
+
+
+class InputCache(Protocol):
+    """Where :func:`run_scene_results` keeps a scene's pixel inputs between runs (the CLI's is the artifact
+    store, ``tasks.bench_inputs``); ``params`` say everything the inputs depend on besides the code."""
+
+    def load(self, params: dict) -> tuple | None:
+        """``(shots, tracks, trajectories, spaces, backends, seconds)`` kept under ``params``, or None."""
+
+    def save(self, params: dict, value: tuple) -> None:
+        """Keep ``value`` under ``params``."""
 
 
 def checked_pixel_stages(names: str | Sequence[str] | None) -> tuple[str, ...]:
@@ -215,11 +226,12 @@ def through_phalp_file(tracks: Sequence, video, body) -> list:
 def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: MethodConfig = MethodConfig(),
                       seed: int = 0, seconds: dict[str, float] | None = None, perception: str = "direct",
                       inputs: str = "simulated", stages: dict[str, Any] | None = None,
-                      pixel_stages: Sequence[str] = PIXEL_STAGES):
+                      pixel_stages: Sequence[str] = PIXEL_STAGES, input_cache: InputCache | None = None):
     """Synthesise one scene and run the variants on shared stages (module docstring); ``perception`` is
     one of :data:`PERCEPTION_ROUTES` (simulated inputs only), ``inputs`` one of :data:`INPUT_SOURCES`;
     ``stages`` (when given) receives ``"backends"`` and ``"seconds"`` of the input stages; with pixel
-    inputs, ``pixel_stages`` are computed from the frames and the others simulated (:func:`pixel_inputs`).
+    inputs, ``pixel_stages`` are computed from the frames and the others simulated (:func:`pixel_inputs`),
+    and kept in ``input_cache`` (when given) for the next run.
 
     Returns:
         the scene's :class:`~multithumbs.types.GroundTruth` and variant -> its
@@ -235,10 +247,19 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
     fix_threads()  # synthesis and simulated perception round by thread count too, not only the method
     video = synthesize(config, body)
     if inputs in ("pixels", "pixels_no_focal"):
-        stage_seconds: dict[str, float] = {}
-        shots, tracks, trajectories, spaces, backends = pixel_inputs(video, body, stage_seconds,
-                                                                     withhold_focal=inputs == "pixels_no_focal",
-                                                                     stages=pixel_stages, seed=seed)
+        params = {"scene": config_to_json(config), "stages": list(checked_pixel_stages(pixel_stages)),
+                  "withhold_focal": inputs == "pixels_no_focal", "seed": seed}
+        cached = input_cache.load(params) if input_cache is not None else None
+        if cached is not None:
+            shots, tracks, trajectories, spaces, backends, stage_seconds = cached
+            backends = {**backends, "inputs": "kept from an earlier run"}
+        else:
+            stage_seconds: dict[str, float] = {}
+            shots, tracks, trajectories, spaces, backends = pixel_inputs(video, body, stage_seconds,
+                                                                         withhold_focal=inputs == "pixels_no_focal",
+                                                                         stages=pixel_stages, seed=seed)
+            if input_cache is not None:
+                input_cache.save(params, (shots, tracks, trajectories, spaces, backends, stage_seconds))
         if stages is not None:
             stages.update(backends=backends, seconds=stage_seconds)
     elif inputs != "simulated":
@@ -286,7 +307,7 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
 
 def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: MethodConfig = MethodConfig(),
               seed: int = 0, perception: str = "direct", inputs: str = "simulated",
-              pixel_stages: Sequence[str] = PIXEL_STAGES) -> SceneScores:
+              pixel_stages: Sequence[str] = PIXEL_STAGES, input_cache: InputCache | None = None) -> SceneScores:
     """Synthesise one scene, run the variants on shared stages, score them."""
     from multithumbs.body.model import load_body_model
     from multithumbs.metrics.evaluate import evaluate
@@ -295,7 +316,7 @@ def run_scene(config: SceneConfig, variants: Sequence[str] = VARIANTS, base: Met
     seconds: dict[str, float] = {}
     stages: dict[str, Any] = {}
     truth, results = run_scene_results(config, variants, body, base, seed, seconds, perception, inputs, stages,
-                                       pixel_stages)
+                                       pixel_stages, input_cache)
     metrics, labels = {}, {}
     for name, result in results.items():
         metrics[name], labels[name] = scene_metrics(evaluate(result, truth, body))
@@ -325,9 +346,9 @@ def run_suite(configs: Sequence[SceneConfig], variants: Sequence[str] = VARIANTS
               base: MethodConfig = MethodConfig(),
               progress: Callable[[SceneScores, int, int], None] | None = None,
               perception: str = "direct", inputs: str = "simulated",
-              pixel_stages: Sequence[str] = PIXEL_STAGES) -> list[SceneScores]:
+              pixel_stages: Sequence[str] = PIXEL_STAGES, input_cache: InputCache | None = None) -> list[SceneScores]:
     """Run every scene (in ``workers`` processes; default: one per core) and return their scores in order;
-    ``perception``, ``inputs`` and ``pixel_stages`` as :func:`run_scene_results`."""
+    ``perception``, ``inputs``, ``pixel_stages`` and ``input_cache`` (picklable) as :func:`run_scene_results`."""
     for v in variants:
         variant_config(v)  # unknown names fail before any work
     if inputs not in INPUT_SOURCES:
@@ -339,14 +360,15 @@ def run_suite(configs: Sequence[SceneConfig], variants: Sequence[str] = VARIANTS
     if workers == 1:
         out = []
         for i, c in enumerate(configs):
-            out.append(run_scene(c, variants, base, perception=perception, inputs=inputs, pixel_stages=pixel_stages))
+            out.append(run_scene(c, variants, base, perception=perception, inputs=inputs, pixel_stages=pixel_stages,
+                                 input_cache=input_cache))
             if progress:
                 progress(out[-1], i + 1, len(configs))
         return out
     results: dict[str, SceneScores] = {}
     # One torch thread per worker: the optimisations are small-op bound, processes scale better.
     with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=(1,)) as pool:
-        futures = {pool.submit(run_scene, c, variants, base, 0, perception, inputs, pixel_stages): c.name
+        futures = {pool.submit(run_scene, c, variants, base, 0, perception, inputs, pixel_stages, input_cache): c.name
                    for c in configs}
         for done, future in enumerate(as_completed(futures), 1):
             scores = future.result()

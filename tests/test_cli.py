@@ -150,7 +150,7 @@ def test_bench_table_fits_80_columns_with_units(monkeypatch):
     from multithumbs.pipeline import VARIANTS
 
     monkeypatch.setattr(bench, "run_suite", lambda configs, names, workers, progress, perception="direct", inputs="simulated",
-                        pixel_stages=None: [])
+                        pixel_stages=None, input_cache=None: [])
     monkeypatch.setattr(bench, "summarize", lambda results, names: {
         v: {k: {"mean": 1234.5678 if k == "w_mpjpe" else 0.5} for k in bench.METRIC_KEYS} for v in names})
     text = invoke_at_80(monkeypatch, "bench")

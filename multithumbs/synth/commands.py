@@ -149,7 +149,8 @@ def register(app: typer.Typer) -> None:
         with _progress() as bar:
             task = bar.add_task(f"suite {suite_name}" + (" from pixels" if from_pixels else ""), total=len(configs))
             results = run_suite(configs, names, workers, progress=lambda s, done, total: bar.update(task, completed=done),
-                                perception=perception_file, inputs=inputs, pixel_stages=stages)
+                                perception=perception_file, inputs=inputs, pixel_stages=stages,
+                                input_cache=_pixel_input_cache() if from_pixels else None)
         summary = summarize(results, names)
         elapsed = time.perf_counter() - start
         if from_pixels:
@@ -180,6 +181,15 @@ def register(app: typer.Typer) -> None:
                                      caption="backends: " + "; ".join(f"{k} {v}" for k, v in backends.items()))
         for table in tables:
             out.print(table)
+
+
+def _pixel_input_cache():
+    """The artifact store under the project's cache that keeps ``bench --from-pixels`` inputs between runs
+    (``MULTITHUMBS_CACHE/bench_store``; ``tasks.bench_inputs``)."""
+    from multithumbs.cli_runtime import cache_dir
+    from tasks.bench_inputs import StoreInputCache
+
+    return StoreInputCache(str(cache_dir() / "bench_store"))
 
 
 def _print_pixels_bench(suite_name, configs, names, results, summary, simulated, elapsed, as_json) -> None:
@@ -221,5 +231,7 @@ def _print_pixels_bench(suite_name, configs, names, results, summary, simulated,
     for r in results:
         if "focal" in r.backends:
             out.print(f"{r.scene}: {r.backends['focal']}", highlight=False, soft_wrap=True)
-    out.print("input stages, seconds over the suite: " + ", ".join(f"{k} {v:.0f}" for k, v in totals.items()),
-              highlight=False, soft_wrap=True)
+    kept = sum("inputs" in r.backends for r in results)
+    out.print("input stages, seconds over the suite: " + ", ".join(f"{k} {v:.0f}" for k, v in totals.items())
+              + (f" (as first computed: {kept} of {len(results)} scenes' inputs kept from an earlier run)"
+                 if kept else ""), highlight=False, soft_wrap=True)
