@@ -11,7 +11,7 @@ this measures perception alone). Printed per scene and over the suite:
   same for a 4-person scene (s03) alone.
 
     .venv/bin/python benchmarks/cpu_perception.py [--scenes s01_two_people_20deg,...] [--runs 1]
-        [--no-fit] [--json OUT]
+        [--no-fit] [--no-facing] [--json OUT]
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ def padded_landmark_boxes(boxes: np.ndarray, image_size: tuple[int, int]) -> np.
     return np.clip(padded, -0.5, [w - 0.5, h - 0.5, w - 0.5, h - 0.5])
 
 
-def score_scene(name: str, fit: bool = True) -> dict:
+def score_scene(name: str, fit: bool = True, facing: bool = True) -> dict:
     import torch
 
     from multithumbs.body.model import load_body_model
@@ -60,6 +60,10 @@ def score_scene(name: str, fit: bool = True) -> dict:
     K = video.truth.world.K[0]
     model = BlazePose(num_threads=2)
     config = BlazePoseConfig()
+    if not facing:
+        import dataclasses
+
+        config = dataclasses.replace(config, facing=dataclasses.replace(config.facing, enabled=False))
     tallies = np.zeros(4, np.int64)
     correct = counted = 0
     errors, pa_errors = [], []
@@ -130,10 +134,12 @@ def main() -> None:
     parser.add_argument("--scenes", default=None, help="comma-separated scene names (default: all 12)")
     parser.add_argument("--runs", type=int, default=1, help="runs of the whole measurement; medians are quoted")
     parser.add_argument("--no-fit", action="store_true", help="tracking and 2D only (no body fitting)")
+    parser.add_argument("--no-facing", action="store_true",
+                        help="keep BlazePose's readings as they are (no mirroring by the walk)")
     parser.add_argument("--json", default=None, help="write the per-scene results here")
     args = parser.parse_args()
     names = args.scenes.split(",") if args.scenes else [s.name for s in suite("standard")]
-    runs = [[score_scene(n, fit=not args.no_fit) for n in names] for _ in range(args.runs)]
+    runs = [[score_scene(n, fit=not args.no_fit, facing=not args.no_facing) for n in names] for _ in range(args.runs)]
     rows = runs[0]
     keys = ("recall", "precision", "pck", "mpjpe", "pa_mpjpe", "landmark_s_per_frame", "fit_s_per_frame")
     print(f"{'scene':<32} {'P':>2} {'recall':>6} {'prec':>6} {'PCK':>6} {'MPJPE':>6} {'PA':>6} {'lm s/f':>7} "
