@@ -26,7 +26,8 @@ import numpy as np
 
 from multithumbs.appearance import DESCRIPTOR_SIZE
 from multithumbs.perception.body_fit import BodyFitConfig, FittedBodies, fit_bodies
-from multithumbs.perception.facing import FacingConfig, body_forward, facing_flips, mirrored, root_velocity
+from multithumbs.perception.facing import (FacingConfig, body_forward, facing_flips, legs_seen, mirrored,
+                                           root_velocity)
 from multithumbs.perception.joints import blazepose33_to_smpl24
 from multithumbs.perception.pose_tracking import ShotPoses, TrackerConfig, track_shot
 from multithumbs.types import PersonTracks, Shots
@@ -74,15 +75,18 @@ def _fit(image: np.ndarray, world: np.ndarray, valid: np.ndarray, K: np.ndarray,
     return keypoints, fit_bodies(keypoints, joints3d, valid, K, body, config)
 
 
-def mirror_flips(fitted: FittedBodies, valid: np.ndarray, body, config: FacingConfig) -> np.ndarray:
-    """``(P, T)`` bool: frames whose fitted body faces away from its walk (step 4)."""
+def mirror_flips(fitted: FittedBodies, valid: np.ndarray, body, config: FacingConfig,
+                 judged: np.ndarray | None = None) -> np.ndarray:
+    """``(P, T)`` bool: frames whose fitted body faces away from its walk (step 4), among the ``judged``
+    ones (default: every valid frame); the motion comes from every valid frame."""
     if not config.enabled or not valid.any():
         return np.zeros(valid.shape, bool)
     import torch
 
     with torch.no_grad():
         joints = body.joints(fitted.global_orient, fitted.body_pose, fitted.betas, fitted.transl).double().numpy()
-    return facing_flips(body_forward(joints), root_velocity(fitted.transl, valid, config.window), valid, config)
+    judged = valid if judged is None else valid & judged
+    return facing_flips(body_forward(joints), root_velocity(fitted.transl, valid, config.window), judged, config)
 
 
 def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.ndarray, image_size: tuple[int, int],
@@ -97,7 +101,7 @@ def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.n
         body = load_body_model()
     config = config or BlazePoseConfig().fit
     keypoints, fitted = _fit(poses.image, poses.world, poses.valid, K, body, config)
-    flips = mirror_flips(fitted, poses.valid, body, facing)
+    flips = mirror_flips(fitted, poses.valid, body, facing, legs_seen(poses.image, facing.min_leg_visibility))
     if flips.any():
         image, world = mirrored(poses.image, poses.world, flips)
         keypoints, fitted = _fit(image, world, poses.valid, K, body, config)

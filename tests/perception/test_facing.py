@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import torch
 
-from multithumbs.perception.facing import (BLAZEPOSE_MIRROR, FacingConfig, body_forward, facing_flips, mirrored,
-                                           root_velocity)
+from multithumbs.perception.facing import (BLAZEPOSE_MIRROR, FacingConfig, body_forward, facing_flips, legs_seen,
+                                           mirrored, root_velocity)
 from multithumbs.perception.joints import BLAZEPOSE33_TO_SMPL24
 from multithumbs.perception.pose_tracking import ShotPoses
 
@@ -83,6 +83,23 @@ def _reading(body, orient: np.ndarray, transl: np.ndarray) -> ShotPoses:
         world[0, :, landmark] = joints[:, joint] - 0.5 * (joints[:, 1] + joints[:, 2])
     boxes = np.concatenate([image[..., :2].min(-2), image[..., :2].max(-2)], -1)
     return ShotPoses(np.array([0]), image, world, boxes, np.zeros((1, t, 360, 80), np.uint8), np.ones((1, t), bool))
+
+
+def test_legs_seen_needs_every_hip_knee_and_ankle():
+    image = np.ones((2, 33, 5))
+    image[1, 27, 3] = 0.4  # the left ankle hidden
+    np.testing.assert_array_equal(legs_seen(image, 0.5), [True, False])
+
+
+def test_a_walk_without_legs_in_view_says_nothing(body):
+    from multithumbs.perception.blazepose_backend import poses_to_tracks
+
+    transl = np.stack([np.zeros(16), np.full(16, 0.3), 4.0 + 0.04 * np.arange(16)], -1)
+    reading = _reading(body, UPRIGHT_FACING_CAMERA, transl)
+    reading.image[..., 25:29, 3] = 0.2  # knees and ankles out of the frame: a close-up
+    tracks = poses_to_tracks(reading, 0, 0, K, (360, 640), body)
+    kept = poses_to_tracks(reading, 0, 0, K, (360, 640), body, facing=FacingConfig(enabled=False))
+    np.testing.assert_array_equal(tracks.keypoints2d, kept.keypoints2d)
 
 
 @pytest.mark.parametrize("walking", [True, False])
