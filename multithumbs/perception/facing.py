@@ -12,7 +12,8 @@ frame's reading is replaced by its mirror: sides swapped, depths relative to the
 depth trajectory is the fit's, so this works where the person walks towards or away from the camera,
 which is where the confusion happens; a person who stands, or walks across the view, is left alone,
 and so is a frame whose legs are not all seen: on close-ups (Megamind.avi) the fitted depth wanders,
-and judging them mirrored 132 of 472 frames of real, front-facing people (1 with the rule).
+and judging those frames too mirrored 132 of 472 person-frames of real, front-facing people (leaving
+them alone: 1).
 A person walking backwards would be mirrored wrongly; so would one whose camera-frame motion is the
 camera's own (a dolly faster than the walk). Both are rare in the footage the method is for.
 """
