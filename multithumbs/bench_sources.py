@@ -121,17 +121,17 @@ def pixel_inputs(video, body, seconds: dict[str, float] | None = None, withhold_
     if withhold_focal:
         focal = estimate_focal(frames, shots.ranges, tracks=tracks, motion=motion)
         K = focal.K(w, h)  # the tracks keep the K they were fitted in: the method re-expresses them
-    trajectories = [simulate_camera_trajectory(video, k, seed=seed) for k in range(shots.num_shots)]
-    spaces = [simulate_shared_space(video, c, seed=seed) for c in range(len(shots.cut_frames))]
+    geometry = None
     if "camera_tracking" in stages or "shared_space" in stages:
         masks = np.concatenate([tr.people_mask() for tr in tracks])
         geometry = scene_geometry(frames, shots, K, masks)
         seconds["camera_tracking"] = geometry.seconds.get("trajectories", math.nan)
         seconds["shared_space"] = geometry.seconds.get("spaces", math.nan)
-        if "camera_tracking" in stages:
-            trajectories = list(geometry.trajectories)
-        if "shared_space" in stages:
-            spaces = list(geometry.spaces)
+    # Each simulated stage draws from its own seeded generator: only the ones used are made.
+    trajectories = (list(geometry.trajectories) if "camera_tracking" in stages else
+                    [simulate_camera_trajectory(video, k, seed=seed) for k in range(shots.num_shots)])
+    spaces = (list(geometry.spaces) if "shared_space" in stages else
+              [simulate_shared_space(video, c, seed=seed) for c in range(len(shots.cut_frames))])
     backends = dict(BACKENDS)
     if "shots" in stages:
         backends["shots"] = f"{shots.source} ({'exact' if exact else 'cuts differ'})"

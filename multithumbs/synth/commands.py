@@ -195,13 +195,12 @@ def _pixel_input_cache():
 def _print_pixels_bench(suite_name, configs, names, results, summary, simulated, elapsed, as_json) -> None:
     """``bench --from-pixels``: the nothing-simulated figures, scene by scene beside the simulated ones, and
     which backend produced each input stage of each scene, with its seconds."""
-    from multithumbs.bench import METRIC_KEYS
+    from multithumbs.bench import METRIC_KEYS, PIXEL_STAGES
     from multithumbs.cli_format import output_console, split_metric_tables
     from multithumbs.metrics.evaluate import METRIC_UNITS
 
     # What made each stage over the suite (a stage's source may differ by scene: fallbacks).
-    backends = {k: " | ".join(sorted({r.backends[k] for r in results if k in r.backends}))
-                for k in ("shots", "perception", "camera_tracking", "shared_space")}
+    backends = {k: " | ".join(sorted({r.backends[k] for r in results if k in r.backends})) for k in PIXEL_STAGES}
     meta = {"suite": suite_name, "scenes": [c.name for c in configs], "seconds": elapsed,
             "backends": backends, "backends_per_scene": {r.scene: r.backends for r in results},
             "stage_seconds": {r.scene: r.stage_seconds for r in results}}
