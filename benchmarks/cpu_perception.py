@@ -6,6 +6,8 @@ this measures perception alone). Printed per scene and over the suite:
 * detection recall and precision (IoU ≥ 0.5 of amodal boxes; recall over people ≥ 80 px tall with at
   least half their silhouette seen; ``multithumbs.metrics.perception``);
 * 2D PCK@0.1 of the box size on the joints the truth marks visible;
+* identity switches within shots: changes of the track a true person is matched to (each fragment of a
+  person lost and found again under a new id counts one);
 * per-frame MPJPE and PA-MPJPE (mm, pelvis-aligned camera-frame joints) of the fitted bodies;
 * seconds per frame, split into landmarks (detector + landmark model + tracking) and fitting, and the
   same for a 4-person scene (s03) alone.
@@ -38,6 +40,16 @@ def padded_landmark_boxes(boxes: np.ndarray, image_size: tuple[int, int]) -> np.
     return np.clip(padded, -0.5, [w - 0.5, h - 0.5, w - 0.5, h - 0.5])
 
 
+def identity_switches(matched: np.ndarray) -> int:
+    """Changes of the track each true person is matched to over the frames it is matched (``matched (Q, T)``,
+    -1 where unmatched): within one shot, every lost-and-found-again fragment counts one."""
+    switches = 0
+    for row in matched:
+        seen = row[row >= 0]
+        switches += int(np.count_nonzero(seen[1:] != seen[:-1]))
+    return switches
+
+
 def score_scene(name: str, fit: bool = True, facing: bool = True) -> dict:
     import torch
 
@@ -68,7 +80,7 @@ def score_scene(name: str, fit: bool = True, facing: bool = True) -> dict:
     correct = counted = 0
     errors, pa_errors = [], []
     seconds = {"landmarks": 0.0, "fitting": 0.0}
-    frames = 0
+    frames = switches = 0
     for true_tr, (a, b) in zip(truth, video.truth.world.shots().ranges):
         start = time.perf_counter()
         poses = track_shot(video.frames[a:b], model, config.tracker)
@@ -84,6 +96,7 @@ def score_scene(name: str, fit: bool = True, facing: bool = True) -> dict:
         if fit:
             start = time.perf_counter()
             tracks = poses_to_tracks(poses, true_tr.shot_index, a, K, (h, w), body, config.fit, config.facing)
+            valid = tracks.valid
             seconds["fitting"] += time.perf_counter() - start
             pred_kp = tracks.keypoints2d
             with torch.no_grad():
@@ -93,11 +106,13 @@ def score_scene(name: str, fit: bool = True, facing: bool = True) -> dict:
         else:
             from multithumbs.perception.joints import blazepose33_to_smpl24
 
+            valid = poses.valid
             pred_kp = blazepose33_to_smpl24(np.concatenate([poses.image[..., :2], poses.image[..., 3:4]], -1))
             pred_boxes = padded_landmark_boxes(poses.boxes, (h, w))
-        matched = match_people(pred_boxes, poses.valid, true_boxes, true_tr.valid)
-        counts = detection_counts(matched, eligible, poses.valid)
+        matched = match_people(pred_boxes, valid, true_boxes, true_tr.valid)
+        counts = detection_counts(matched, eligible, valid)
         tallies += [counts.true_positives, counts.eligible, counts.predictions, counts.false_positives]
+        switches += identity_switches(matched)
         people, times = np.nonzero((matched >= 0) & eligible)
         pred_index = matched[people, times]
         joints = np.zeros(24, bool)
@@ -123,7 +138,7 @@ def score_scene(name: str, fit: bool = True, facing: bool = True) -> dict:
         "mpjpe": float(np.concatenate(errors).mean()) if errors else float("nan"),
         "pa_mpjpe": float(np.concatenate(pa_errors).mean()) if pa_errors else float("nan"),
         "landmark_s_per_frame": seconds["landmarks"] / frames, "fit_s_per_frame": seconds["fitting"] / frames,
-        "people": int(video.truth.world.valid.shape[0]),
+        "people": int(video.truth.world.valid.shape[0]), "switches": switches,
     }
 
 
@@ -141,16 +156,19 @@ def main() -> None:
     names = args.scenes.split(",") if args.scenes else [s.name for s in suite("standard")]
     runs = [[score_scene(n, fit=not args.no_fit, facing=not args.no_facing) for n in names] for _ in range(args.runs)]
     rows = runs[0]
-    keys = ("recall", "precision", "pck", "mpjpe", "pa_mpjpe", "landmark_s_per_frame", "fit_s_per_frame")
-    print(f"{'scene':<32} {'P':>2} {'recall':>6} {'prec':>6} {'PCK':>6} {'MPJPE':>6} {'PA':>6} {'lm s/f':>7} "
+    keys = ("recall", "precision", "switches", "pck", "mpjpe", "pa_mpjpe", "landmark_s_per_frame",
+            "fit_s_per_frame")
+    print(f"{'scene':<32} {'P':>2} {'recall':>6} {'prec':>6} {'IDsw':>4} {'PCK':>6} {'MPJPE':>6} {'PA':>6} {'lm s/f':>7} "
           f"{'fit s/f':>7}")
     for i, row in enumerate(rows):
         med = {k: statistics.median(run[i][k] for run in runs) for k in keys}
-        print(f"{row['scene']:<32} {row['people']:>2} {med['recall']:6.3f} {med['precision']:6.3f} {med['pck']:6.3f} "
+        print(f"{row['scene']:<32} {row['people']:>2} {med['recall']:6.3f} {med['precision']:6.3f} "
+              f"{med['switches']:4.0f} {med['pck']:6.3f} "
               f"{med['mpjpe']:6.1f} {med['pa_mpjpe']:6.1f} {med['landmark_s_per_frame']:7.3f} "
               f"{med['fit_s_per_frame']:7.3f}")
     total = {k: statistics.median(statistics.fmean(r[k] for r in run) for run in runs) for k in keys}
-    print(f"{'mean':<32} {'':>2} {total['recall']:6.3f} {total['precision']:6.3f} {total['pck']:6.3f} "
+    print(f"{'mean':<32} {'':>2} {total['recall']:6.3f} {total['precision']:6.3f} {total['switches']:4.1f} "
+          f"{total['pck']:6.3f} "
           f"{total['mpjpe']:6.1f} {total['pa_mpjpe']:6.1f} {total['landmark_s_per_frame']:7.3f} "
           f"{total['fit_s_per_frame']:7.3f}")
     if args.json:
