@@ -158,7 +158,8 @@ def main() -> None:
     rows = runs[0]
     keys = ("recall", "precision", "switches", "pck", "mpjpe", "pa_mpjpe", "landmark_s_per_frame",
             "fit_s_per_frame")
-    print(f"{'scene':<32} {'P':>2} {'recall':>6} {'prec':>6} {'IDsw':>4} {'PCK':>6} {'MPJPE':>6} {'PA':>6} {'lm s/f':>7} "
+    print(f"{'scene':<32} {'P':>2} {'recall':>6} {'prec':>6} {'IDsw':>4} {'PCK':>6} {'MPJPE':>6} {'PA':>6} "
+          f"{'lm s/f':>7} "
           f"{'fit s/f':>7}")
     for i, row in enumerate(rows):
         med = {k: statistics.median(run[i][k] for run in runs) for k in keys}
