@@ -6,8 +6,9 @@ this measures perception alone). Printed per scene and over the suite:
 * detection recall and precision (IoU ≥ 0.5 of amodal boxes; recall over people ≥ 80 px tall with at
   least half their silhouette seen; ``multithumbs.metrics.perception``);
 * 2D PCK@0.1 of the box size on the joints the truth marks visible;
-* identity switches within shots: changes of the track a true person is matched to (each fragment of a
-  person lost and found again under a new id counts one);
+* identity switches within shots: CLEAR-MOT's count (``multithumbs.metrics.identity.count_id_switches``)
+  over the per-frame matching of the recall figure (each fragment of a person lost and found again under a
+  new id counts one);
 * per-frame MPJPE and PA-MPJPE (mm, pelvis-aligned camera-frame joints) of the fitted bodies;
 * seconds per frame, split into landmarks (detector + landmark model + tracking) and fitting, and the
   same for a 4-person scene (s03) alone.
@@ -40,21 +41,11 @@ def padded_landmark_boxes(boxes: np.ndarray, image_size: tuple[int, int]) -> np.
     return np.clip(padded, -0.5, [w - 0.5, h - 0.5, w - 0.5, h - 0.5])
 
 
-def identity_switches(matched: np.ndarray) -> int:
-    """Changes of the track each true person is matched to over the frames it is matched (``matched (Q, T)``,
-    -1 where unmatched): within one shot, every lost-and-found-again fragment counts one."""
-    switches = 0
-    for row in matched:
-        seen = row[row >= 0]
-        switches += int(np.count_nonzero(seen[1:] != seen[:-1]))
-    return switches
-
-
 def score_scene(name: str, fit: bool = True, facing: bool = True) -> dict:
     import torch
 
     from multithumbs.body.model import load_body_model
-    from multithumbs.metrics.identity import projected_boxes
+    from multithumbs.metrics.identity import count_id_switches, projected_boxes
     from multithumbs.metrics.perception import detection_counts, eligible_people, match_people, pck
     from multithumbs.metrics.pose import mpjpe, pa_mpjpe
     from multithumbs.perception.blazepose_backend import BlazePoseConfig, poses_to_tracks
@@ -96,7 +87,6 @@ def score_scene(name: str, fit: bool = True, facing: bool = True) -> dict:
         if fit:
             start = time.perf_counter()
             tracks = poses_to_tracks(poses, true_tr.shot_index, a, K, (h, w), body, config.fit, config.facing)
-            valid = tracks.valid
             seconds["fitting"] += time.perf_counter() - start
             pred_kp = tracks.keypoints2d
             with torch.no_grad():
@@ -106,13 +96,12 @@ def score_scene(name: str, fit: bool = True, facing: bool = True) -> dict:
         else:
             from multithumbs.perception.joints import blazepose33_to_smpl24
 
-            valid = poses.valid
             pred_kp = blazepose33_to_smpl24(np.concatenate([poses.image[..., :2], poses.image[..., 3:4]], -1))
             pred_boxes = padded_landmark_boxes(poses.boxes, (h, w))
-        matched = match_people(pred_boxes, valid, true_boxes, true_tr.valid)
-        counts = detection_counts(matched, eligible, valid)
+        matched = match_people(pred_boxes, poses.valid, true_boxes, true_tr.valid)
+        counts = detection_counts(matched, eligible, poses.valid)
         tallies += [counts.true_positives, counts.eligible, counts.predictions, counts.false_positives]
-        switches += identity_switches(matched)
+        switches += count_id_switches(matched).total
         people, times = np.nonzero((matched >= 0) & eligible)
         pred_index = matched[people, times]
         joints = np.zeros(24, bool)
@@ -159,19 +148,16 @@ def main() -> None:
     keys = ("recall", "precision", "switches", "pck", "mpjpe", "pa_mpjpe", "landmark_s_per_frame",
             "fit_s_per_frame")
     print(f"{'scene':<32} {'P':>2} {'recall':>6} {'prec':>6} {'IDsw':>4} {'PCK':>6} {'MPJPE':>6} {'PA':>6} "
-          f"{'lm s/f':>7} "
-          f"{'fit s/f':>7}")
+          f"{'lm s/f':>7} {'fit s/f':>7}")
     for i, row in enumerate(rows):
         med = {k: statistics.median(run[i][k] for run in runs) for k in keys}
         print(f"{row['scene']:<32} {row['people']:>2} {med['recall']:6.3f} {med['precision']:6.3f} "
-              f"{med['switches']:4.0f} {med['pck']:6.3f} "
-              f"{med['mpjpe']:6.1f} {med['pa_mpjpe']:6.1f} {med['landmark_s_per_frame']:7.3f} "
-              f"{med['fit_s_per_frame']:7.3f}")
+              f"{med['switches']:4.0f} {med['pck']:6.3f} {med['mpjpe']:6.1f} {med['pa_mpjpe']:6.1f} "
+              f"{med['landmark_s_per_frame']:7.3f} {med['fit_s_per_frame']:7.3f}")
     total = {k: statistics.median(statistics.fmean(r[k] for r in run) for run in runs) for k in keys}
     print(f"{'mean':<32} {'':>2} {total['recall']:6.3f} {total['precision']:6.3f} {total['switches']:4.1f} "
-          f"{total['pck']:6.3f} "
-          f"{total['mpjpe']:6.1f} {total['pa_mpjpe']:6.1f} {total['landmark_s_per_frame']:7.3f} "
-          f"{total['fit_s_per_frame']:7.3f}")
+          f"{total['pck']:6.3f} {total['mpjpe']:6.1f} {total['pa_mpjpe']:6.1f} "
+          f"{total['landmark_s_per_frame']:7.3f} {total['fit_s_per_frame']:7.3f}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(runs, f, indent=1)
