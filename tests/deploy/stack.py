@@ -27,21 +27,29 @@ def free_port() -> int:
 # retries 429, 502 and 503 with backoff (prefect/client/base.py, PrefectHttpxAsyncClient), so REST calls
 # made here do the same instead of failing a test on a momentarily locked database.
 RETRYABLE = {429, 502, 503}
+REQUEST_TIMEOUT = 60.0
+"""Seconds a call may wait for the server: Prefect's own client default (PREFECT_API_REQUEST_TIMEOUT). The
+server answers a read late while its SQLite database is busy with a running flow's writes (seen at 30 s
+on a loaded 2-core machine); a GET that times out is retried like a 503, being safe to repeat."""
 
 
 def call_api(url: str, method: str = "GET", body: dict | None = None, attempts: int = 6):
-    """JSON from a REST call to the Prefect API, retried with backoff on the codes Prefect's client retries."""
+    """JSON from a REST call to the Prefect API, retried with backoff on the codes Prefect's client retries
+    (and, for a GET, on a timeout)."""
     request = urllib.request.Request(url, method=method, data=None if body is None else json.dumps(body).encode(),
                                      headers={"Content-Type": "application/json"})
     for attempt in range(attempts):
         try:
-            with urllib.request.urlopen(request, timeout=30) as response:
+            with urllib.request.urlopen(request, timeout=REQUEST_TIMEOUT) as response:
                 text = response.read()
             return json.loads(text) if text else None
         except urllib.error.HTTPError as error:
             if error.code not in RETRYABLE or attempt == attempts - 1:
                 raise
-            time.sleep(min(2.0 ** attempt, 10.0))
+        except TimeoutError:
+            if method != "GET" or attempt == attempts - 1:
+                raise
+        time.sleep(min(2.0 ** attempt, 10.0))
 
 
 def healthy(url: str) -> bool:
