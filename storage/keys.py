@@ -1,7 +1,7 @@
 """Artifact keys: sha256 of canonical JSON, chained like a Merkle DAG (DESIGN §5).
 
-A stage's key hashes its name, its version, its parameters, the keys of its inputs and the package
-version, so changing one parameter changes that stage's key and every key downstream of it, and nothing
+A stage's key hashes its name, its version, its parameters, the keys of its inputs, the package
+version and the CPU kernels' tag, so changing one parameter changes that stage's key and every key downstream of it, and nothing
 upstream. Root inputs (video files) are keyed by a streamed digest of their bytes.
 """
 
@@ -18,6 +18,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 import multithumbs
+from multithumbs.cpu_kernels import kernel_tag
 
 KEY_LENGTH = 64
 """Hex characters of a key (sha256)."""
@@ -60,10 +61,12 @@ def canonical_json(value: Any) -> bytes:
 
 def artifact_key(stage: str, stage_version: str | int, params: Any, input_keys: Sequence[str] | Mapping[str, str] = (),
                  package_version: str = multithumbs.__version__) -> str:
-    """Key of a stage's output: sha256 over {stage, version, parameters, input keys, package version}."""
+    """Key of a stage's output: sha256 over {stage, version, parameters, input keys, package version, the CPU
+    kernels in use}. The last is the same on every AVX2 machine (:mod:`multithumbs.cpu_kernels`); bytes made
+    with other kernels round differently, so they get keys of their own."""
     record = {"stage": stage, "stage_version": str(stage_version), "params": params,
               "inputs": dict(input_keys) if isinstance(input_keys, Mapping) else list(input_keys),
-              "package_version": package_version}
+              "package_version": package_version, "kernels": kernel_tag()}
     return hashlib.sha256(canonical_json(record)).hexdigest()
 
 

@@ -5,6 +5,8 @@ from pathlib import Path
 
 import pytest
 
+import multithumbs  # noqa: F401  (first: it pins the CPU kernels before numpy and torch load)
+
 
 @pytest.fixture(scope="session", autouse=True)
 def _isolated_cache(tmp_path_factory):

@@ -166,7 +166,8 @@ def register(app: typer.Typer) -> None:
             backends["perception"] = "simulated, through a 4DHumans/PHALP results file"
         if as_json:
             print(json.dumps(_jsonable({**summary, "_meta": {"suite": suite_name, "scenes": [c.name for c in configs],
-                                                              "seconds": elapsed, "backends": backends}}),
+                                                              "seconds": elapsed, "backends": backends,
+                                                              **_machine()}}),
                              indent=1, sort_keys=True))
             return
         from multithumbs.cli_format import output_console, split_metric_tables
@@ -181,6 +182,13 @@ def register(app: typer.Typer) -> None:
                                      caption="backends: " + "; ".join(f"{k} {v}" for k, v in backends.items()))
         for table in tables:
             out.print(table)
+
+
+def _machine() -> dict[str, str]:
+    """The CPU a bench ran on and the kernels it used (figures move with unpinned kernels: cpu_kernels)."""
+    from multithumbs.cpu_kernels import cpu_model, kernel_tag
+
+    return {"cpu": cpu_model(), "kernels": kernel_tag()}
 
 
 def _pixel_input_cache():
@@ -203,7 +211,7 @@ def _print_pixels_bench(suite_name, configs, names, results, summary, simulated,
     backends = {k: " | ".join(sorted({r.backends[k] for r in results if k in r.backends})) for k in PIXEL_STAGES}
     meta = {"suite": suite_name, "scenes": [c.name for c in configs], "seconds": elapsed,
             "backends": backends, "backends_per_scene": {r.scene: r.backends for r in results},
-            "stage_seconds": {r.scene: r.stage_seconds for r in results}}
+            "stage_seconds": {r.scene: r.stage_seconds for r in results}, **_machine()}
     if as_json:
         print(json.dumps(_jsonable({"pixels": summary, "simulated": simulated, "_meta": meta}), indent=1,
                          sort_keys=True))

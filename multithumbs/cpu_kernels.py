@@ -1,0 +1,115 @@
+"""One kernel choice on every x86-64 machine with AVX2, so that a content key means the same bytes anywhere.
+
+MKL, torch's ATen, numpy, OpenBLAS and OpenCV each pick their kernels by the CPU they find, and two
+kernels of one operation round differently. Measured (docs/RESULTS.md, session 10): on an AMD EPYC the
+standard suite's s09 scored 120.90 mm and on an earlier machine 118.09 mm, from the same code; with MKL
+in its conditional-numerical-reproducibility mode for AVX2 (``MKL_CBWR=AVX2``) the AMD machine gives
+118.09 mm too. ``ATEN_CPU_CAPABILITY`` moved s01 by 0.014 mm on its own (``default`` against ``avx2``).
+
+:func:`pin_cpu_kernels` sets each library's switch to its AVX2 (x86-64-v3) kernels, before the library
+reads it: numpy and OpenBLAS read theirs when loaded, MKL at its first call, ATen at its first dispatch.
+``multithumbs/__init__`` calls it first thing, so importing any part of the package before numpy or torch
+have computed pins them. A machine without AVX2 (or not x86-64) is left alone: forcing AVX2 kernels there
+would stop the process, and its bytes are told apart by :func:`kernel_tag`, which every artifact key
+hashes. A value the user set beforehand is kept (their choice), and the tag then says so.
+Not pinned: the tflite runtime's XNNPACK (BlazePose), which has no switch; pycolmap is built without
+run-time dispatch.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import platform
+import sys
+from typing import Mapping, MutableMapping
+
+PINS: Mapping[str, str] = {
+    "MKL_CBWR": "AVX2",
+    "ATEN_CPU_CAPABILITY": "avx2",
+    "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR",
+    "OPENBLAS_CORETYPE": "Haswell",
+}
+"""Environment variable -> the value that selects each library's AVX2 kernels (or turns its AVX-512 ones off)."""
+
+OPENCV_PIN: Mapping[str, str] = {
+    "OPENCV_CPU_DISABLE": "AVX512_SKX,AVX512_COMMON,AVX512_KNL,AVX512_KNM,AVX512_CNL,AVX512_CLX,AVX512_ICL"}
+"""OpenCV's AVX-512 kernels turned off; set only on CPUs that have AVX-512 (OpenCV warns on every import
+about turning off a feature the CPU lacks)."""
+
+
+def pins_for(flags: frozenset[str]) -> dict[str, str]:
+    """The variables :func:`pin_cpu_kernels` sets on a CPU with these flags (which must :func:`can_pin`)."""
+    return {**PINS, **(OPENCV_PIN if "avx512f" in flags else {})}
+
+
+PINNED_TAG = "x86-64-v3"
+""":func:`kernel_tag` of a process whose libraries all use the pinned kernels."""
+
+
+@functools.lru_cache(maxsize=None)
+def cpu_flags(cpuinfo: str = "/proc/cpuinfo") -> frozenset[str]:
+    """The first processor's feature flags (Linux); empty where the file is missing."""
+    try:
+        with open(cpuinfo) as fh:
+            for line in fh:
+                if line.startswith("flags"):
+                    return frozenset(line.split(":", 1)[1].split())
+    except OSError:
+        pass
+    return frozenset()
+
+
+@functools.lru_cache(maxsize=None)
+def cpu_model(cpuinfo: str = "/proc/cpuinfo") -> str:
+    """The first processor's model name (Linux), else :func:`platform.processor`."""
+    try:
+        with open(cpuinfo) as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def can_pin(flags: frozenset[str], machine: str) -> bool:
+    """Whether the pinned kernels run here: x86-64 with AVX2 and FMA."""
+    return machine.lower() in ("x86_64", "amd64") and {"avx2", "fma"} <= flags
+
+
+def pin_cpu_kernels(environ: MutableMapping[str, str] = os.environ, flags: frozenset[str] | None = None,
+                    machine: str | None = None) -> dict[str, str]:
+    """Set every :data:`PINS` variable the user has not set, where the CPU can run them; returns the ones set."""
+    flags = cpu_flags() if flags is None else flags
+    if not can_pin(flags, platform.machine() if machine is None else machine):
+        return {}
+    added = {name: value for name, value in pins_for(flags).items() if name not in environ}
+    environ.update(added)
+    return added
+
+
+def kernel_tag(environ: Mapping[str, str] = os.environ) -> str:
+    """:data:`PINNED_TAG` when every pin is in effect in this process; else a description of this CPU and the
+    switches that differ, so that bytes made with other kernels never share a key with the pinned ones."""
+    flags = cpu_flags()
+    differing = sorted(name for name, value in pins_for(flags).items() if environ.get(name) != value)
+    numpy_v4 = _numpy_has_avx512()
+    if can_pin(flags, platform.machine()) and not differing and not numpy_v4:
+        return PINNED_TAG
+    return "unpinned:" + ";".join([platform.machine(), cpu_model(), *(f"{n}={environ.get(n, '')}" for n in differing),
+                                   f"numpy_x86_v4={numpy_v4}"])
+
+
+def _numpy_has_avx512() -> bool:
+    """Whether the loaded numpy dispatches to its AVX-512 kernels (it read its switch before the pin)."""
+    if "numpy" not in sys.modules:
+        return False
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__
+    except ImportError:
+        return False
+    return bool(__cpu_features__.get("X86_V4", False))
+
+
+__all__ = ["PINS", "OPENCV_PIN", "pins_for", "PINNED_TAG", "cpu_flags", "cpu_model", "can_pin", "pin_cpu_kernels", "kernel_tag"]
