@@ -8,8 +8,9 @@ The ``blazepose`` perception source (the default of ``multithumbs run``). For ea
    world landmarks the matching 3D joints (:func:`multithumbs.perception.joints.blazepose33_to_smpl24`);
 3. :func:`multithumbs.perception.body_fit.fit_bodies` fits the body model to both in the scene's
    intrinsics, batched over the shot's people and frames;
-4. frames where a fitted body faces away from where it walks are read as BlazePose's front/back
-   confusion: their landmarks are mirrored and the shot is fitted again (:mod:`.facing`).
+4. each track's readings are labelled front or back by where the fitted root walks and how slowly bodies
+   turn; the frames taken for BlazePose's front/back confusion are mirrored and the shot is fitted
+   again (:mod:`.facing`).
 
 Masks come from BlazePose's segmentation. Appearance is described afterwards from the pixels, as for every
 source (:mod:`.appearance`). Frames where a person was not followed stay invalid.
@@ -26,7 +27,7 @@ import numpy as np
 
 from multithumbs.appearance import DESCRIPTOR_SIZE
 from multithumbs.perception.body_fit import BodyFitConfig, FittedBodies, fit_bodies
-from multithumbs.perception.facing import (FacingConfig, body_forward, facing_flips, legs_seen, mirrored,
+from multithumbs.perception.facing import (HIP_LANDMARKS, FacingConfig, facing_flips, legs_seen, mirrored,
                                            root_velocity)
 from multithumbs.perception.joints import blazepose33_to_smpl24
 from multithumbs.perception.pose_tracking import ShotPoses, TrackerConfig, track_shot
@@ -75,18 +76,14 @@ def _fit(image: np.ndarray, world: np.ndarray, valid: np.ndarray, K: np.ndarray,
     return keypoints, fit_bodies(keypoints, joints3d, valid, K, body, config)
 
 
-def mirror_flips(fitted: FittedBodies, valid: np.ndarray, body, config: FacingConfig,
-                 judged: np.ndarray | None = None) -> np.ndarray:
-    """``(P, T)`` bool: frames whose fitted body faces away from its walk (step 4), among the ``judged``
-    ones (default: every valid frame); the motion comes from every valid frame."""
-    if not config.enabled or not valid.any():
-        return np.zeros(valid.shape, bool)
-    import torch
-
-    with torch.no_grad():
-        joints = body.joints(fitted.global_orient, fitted.body_pose, fitted.betas, fitted.transl).double().numpy()
-    judged = valid if judged is None else valid & judged
-    return facing_flips(body_forward(joints), root_velocity(fitted.transl, valid, config.window), judged, config)
+def mirror_flips(poses: ShotPoses, fitted: FittedBodies, config: FacingConfig) -> np.ndarray:
+    """``(P, T)`` bool: frames whose reading the walk and the turns take for a back seen as a front (step 4);
+    the motion is the first fit's roots over every valid frame."""
+    if not config.enabled or not poses.valid.any():
+        return np.zeros(poses.valid.shape, bool)
+    linked = poses.valid & legs_seen(poses.image, config.min_hip_visibility, HIP_LANDMARKS)
+    judged = legs_seen(poses.image, config.min_leg_visibility)
+    return facing_flips(poses.world, root_velocity(fitted.transl, poses.valid, config.window), linked, judged, config)
 
 
 def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.ndarray, image_size: tuple[int, int],
@@ -101,7 +98,7 @@ def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.n
         body = load_body_model()
     config = config or BlazePoseConfig().fit
     keypoints, fitted = _fit(poses.image, poses.world, poses.valid, K, body, config)
-    flips = mirror_flips(fitted, poses.valid, body, facing, legs_seen(poses.image, facing.min_leg_visibility))
+    flips = mirror_flips(poses, fitted, facing)
     if flips.any():
         image, world = mirrored(poses.image, poses.world, flips)
         keypoints, fitted = _fit(image, world, poses.valid, K, body, config)

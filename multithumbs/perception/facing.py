@@ -6,14 +6,21 @@ takes a back for a front: it then names the right shoulder "left" (and every oth
 the limbs' depths on the wrong side of the hips. Its visibility does not flag it. On the suite's
 faceless people these frames are most of the 2D error (``docs/RESULTS.md``, issue 16).
 
-The walk tells the two readings apart: people walk forwards. Where a person's fitted body faces away
-from the direction the fit's own root moves (camera frame, a least-squares line over a few frames), the
-frame's reading is replaced by its mirror: sides swapped, depths relative to the hips negated. The
-depth trajectory is the fit's, so this works where the person walks towards or away from the camera,
-which is where the confusion happens; a person who stands, or walks across the view, is left alone,
-and so is a frame whose legs are not all seen: on close-ups (Megamind.avi) the fitted depth wanders,
-and judging those frames too mirrored 132 of 472 person-frames of real, front-facing people (leaving
-them alone: 1).
+Each frame of a track has two readings, BlazePose's and its mirror (sides swapped, depths relative to
+the hips negated), and each reading faces a way (:func:`reading_forward`). The labelling of a track
+is the cheapest path through them (Viterbi, :func:`facing_flips`):
+- people walk forwards: where the whole body is seen and the fit's root moves (camera frame, a
+  least-squares line over a few frames), a reading facing against the motion costs, one facing along it
+  gains;
+- bodies turn slowly: a reading turned 180° from the previous frame's costs ``turn_cost``, so the
+  walk's evidence carries to frames where it says nothing (a track's first frames, a person standing
+  or walking across the view), and BlazePose's frame-by-frame flips are undone as a run;
+- BlazePose's own reading is kept where nothing else decides (``mirror_cost``).
+Judging the reading itself, not the body fitted to all readings, matters: the fit's smoothness blends
+flipped and unflipped frames into a slow turn that faces neither way (s09's track starts were 135, 99,
+62° off). Frames whose hips are not seen are not linked, and only frames whose hips, knees and ankles
+are all seen give evidence: on close-ups (Megamind.avi) the fitted depth wanders, and evidence from them
+mirrored 66 of 457 person-frames of real, front-facing people (from whole bodies only: 7).
 A person walking backwards would be mirrored wrongly; so would one whose camera-frame motion is the
 camera's own (a dolly faster than the walk). Both are rare in the footage the method is for.
 """
@@ -33,19 +40,26 @@ foot tips in left / right pairs from 11 / 12 to 31 / 32)."""
 
 @dataclass(frozen=True)
 class FacingConfig:
-    """When a frame's reading is taken for a back seen as a front (module docstring)."""
+    """How a track's readings are labelled front or back (module docstring)."""
 
     enabled: bool = True
-    """Mirror the readings of people who face away from where they walk."""
+    """Mirror the readings the labelling takes for a back seen as a front."""
     min_speed: float = 0.005
     """Metres per frame (0.12 m/s at 24 fps) the fitted root must move for the walk to say anything."""
-    max_agreement: float = -0.3
-    """Cosine between the fitted body's forward and its motion below which the frame is mirrored."""
+    full_speed: float = 0.02
+    """Metres per frame at which the walk's evidence has its full weight (it grows linearly up to it)."""
+    turn_cost: float = 2.0
+    """Cost of a reading turned 180° from the previous linked frame's (1 - cosine, halved, times this;
+    divided by the frames between them), against at most 1 per frame from the walk."""
+    mirror_cost: float = 0.05
+    """Cost per frame of the mirror reading: BlazePose's own is kept where nothing else decides."""
     window: int = 8
     """Frames either side of a frame whose fitted roots give its motion."""
+    min_hip_visibility: float = 0.5
+    """Visibility both hips need for a frame to be labelled (its reading's forward is read across them)."""
     min_leg_visibility: float = 0.5
-    """Visibility every hip, knee and ankle landmark needs for the frame to be judged: a walk is read from
-    a whole body; close-ups (faces and shoulders, whose fitted depth wanders) are left alone."""
+    """Visibility every hip, knee and ankle landmark needs for the walk to judge the frame: a walk is read
+    from a whole body; close-ups (faces and shoulders, whose fitted depth wanders) give no evidence."""
 
 
 def mirrored(image: np.ndarray, world: np.ndarray, flip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -96,31 +110,74 @@ def root_velocity(transl: np.ndarray, valid: np.ndarray, window: int) -> np.ndar
     return velocity
 
 
-def facing_flips(forward: np.ndarray, velocity: np.ndarray, valid: np.ndarray,
+def reading_forward(world: np.ndarray) -> np.ndarray:
+    """Unit forward ``(..., 3)`` of BlazePose world landmarks ``(..., 33, 3)``: across the hips (left minus
+    right) crossed with up the trunk (mid-shoulders minus mid-hips), as :func:`body_forward` for SMPL."""
+    world = np.asarray(world, dtype=np.float64)
+    up = 0.5 * (world[..., 11, :] + world[..., 12, :] - world[..., 23, :] - world[..., 24, :])
+    forward = np.cross(world[..., 23, :] - world[..., 24, :], up)
+    return forward / np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-12)
+
+
+def facing_flips(world: np.ndarray, velocity: np.ndarray, linked: np.ndarray, judged: np.ndarray,
                  config: FacingConfig = FacingConfig()) -> np.ndarray:
-    """``(P, T)`` bool: the frames whose reading faces away from the walk (module docstring).
+    """``(P, T)`` bool: the frames whose reading the labelling mirrors (module docstring).
 
     Args:
-        forward: ``(P, T, 3)`` unit forward of the fitted bodies (:func:`body_forward`).
-        velocity: ``(P, T, 3)`` their roots' motion per frame (:func:`root_velocity`); nan where unknown.
-        valid: ``(P, T)`` bool, the frames that may be judged.
+        world: ``(P, T, 33, 3)`` BlazePose's world landmarks as read.
+        velocity: ``(P, T, 3)`` the fitted roots' motion per frame (:func:`root_velocity`); nan where unknown.
+        linked: ``(P, T)`` bool, the frames labelled (hips seen); the others keep their reading.
+        judged: ``(P, T)`` bool, the frames whose walk gives evidence (a subset of ``linked`` counts).
     """
-    velocity = np.asarray(velocity, dtype=np.float64)
-    known = np.isfinite(velocity).all(-1) & np.asarray(valid, bool)
+    world, velocity = np.asarray(world, dtype=np.float64), np.asarray(velocity, dtype=np.float64)
+    linked = np.asarray(linked, bool)
+    flips = np.zeros(linked.shape, bool)
+    if not config.enabled:
+        return flips
+    order = list(BLAZEPOSE_MIRROR)
+    mirror = world[..., order, :] * np.array([1.0, 1.0, -1.0])
+    # (P, T, 2, 3): the forward of each frame's two readings, BlazePose's then the mirror.
+    forward = np.stack([reading_forward(world), reading_forward(mirror)], axis=-2)
+    known = np.isfinite(velocity).all(-1) & linked & np.asarray(judged, bool)
     motion = np.where(known[..., None], velocity, 0.0)
     speed = np.linalg.norm(motion, axis=-1)
-    agreement = np.einsum("...k,...k->...", np.asarray(forward, dtype=np.float64), motion)
-    return bool(config.enabled) & known & (speed > config.min_speed) & (agreement < config.max_agreement * speed)
+    weight = np.where(speed > config.min_speed, np.minimum(speed / config.full_speed, 1.0), 0.0)
+    direction = motion / np.maximum(speed, 1e-12)[..., None]
+    unary = -weight[..., None] * np.einsum("ptsk,ptk->pts", forward, direction) + np.array([0.0, config.mirror_cost])
+    for p in range(linked.shape[0]):
+        frames = np.flatnonzero(linked[p])
+        if frames.size:
+            flips[p, frames] = _cheapest_labels(unary[p, frames], forward[p, frames], np.diff(frames), config.turn_cost)
+    return flips
+
+
+def _cheapest_labels(unary: np.ndarray, forward: np.ndarray, gaps: np.ndarray, turn_cost: float) -> np.ndarray:
+    """Viterbi over two states per frame: ``unary (n, 2)`` costs, ``forward (n, 2, 3)`` the readings' facing,
+    ``gaps (n-1)`` frames between neighbours. Returns ``(n,)`` bool, True where the mirror is cheapest."""
+    n = unary.shape[0]
+    cost, back = unary[0].copy(), np.zeros((n, 2), np.int64)
+    for i in range(1, n):
+        turn = turn_cost / gaps[i - 1] * 0.5 * (1.0 - forward[i - 1] @ forward[i].T)   # (previous, current)
+        total = cost[:, None] + turn
+        back[i] = total.argmin(0)
+        cost = total.min(0) + unary[i]
+    labels = np.zeros(n, np.int64)
+    labels[-1] = cost.argmin()
+    for i in range(n - 1, 0, -1):
+        labels[i - 1] = back[i, labels[i]]
+    return labels.astype(bool)
 
 
 LEG_LANDMARKS: tuple[int, ...] = (23, 24, 25, 26, 27, 28)
 """BlazePose's hips, knees and ankles."""
+HIP_LANDMARKS: tuple[int, ...] = (23, 24)
+"""BlazePose's hips."""
 
 
-def legs_seen(image: np.ndarray, min_visibility: float) -> np.ndarray:
-    """``(...)`` bool: every hip, knee and ankle of BlazePose's landmarks ``image (..., 33, 5)`` has
-    visibility (column 3) at least ``min_visibility``."""
-    return np.asarray(image)[..., list(LEG_LANDMARKS), 3].min(-1) >= min_visibility
+def legs_seen(image: np.ndarray, min_visibility: float, landmarks: tuple[int, ...] = LEG_LANDMARKS) -> np.ndarray:
+    """``(...)`` bool: every one of ``landmarks`` (default: the hips, knees and ankles) of BlazePose's
+    landmarks ``image (..., 33, 5)`` has visibility (column 3) at least ``min_visibility``."""
+    return np.asarray(image)[..., list(landmarks), 3].min(-1) >= min_visibility
 
 
-__all__ = ["LEG_LANDMARKS", "legs_seen", "BLAZEPOSE_MIRROR", "FacingConfig", "mirrored", "body_forward", "root_velocity", "facing_flips"]
+__all__ = ["LEG_LANDMARKS", "HIP_LANDMARKS", "legs_seen", "reading_forward", "BLAZEPOSE_MIRROR", "FacingConfig", "mirrored", "body_forward", "root_velocity", "facing_flips"]

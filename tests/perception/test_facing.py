@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from multithumbs.perception.facing import (BLAZEPOSE_MIRROR, FacingConfig, body_forward, facing_flips, legs_seen,
-                                           mirrored, root_velocity)
+                                           mirrored, reading_forward, root_velocity)
 from multithumbs.perception.joints import BLAZEPOSE33_TO_SMPL24
 from multithumbs.perception.pose_tracking import ShotPoses
 
@@ -55,19 +55,55 @@ def test_root_velocity_is_the_slope_of_a_line_and_unknown_when_alone():
     assert np.isnan(root_velocity(transl, lonely, window=4)).all()
 
 
-def test_flips_where_the_body_faces_away_from_its_walk():
-    forward = np.tile([0.0, 0.0, 1.0], (4, 3, 1))        # every body faces away from the camera
-    velocity = np.zeros((4, 3, 3))
-    velocity[0, :, 2] = -0.04                            # walks towards the camera: backwards, a confusion
-    velocity[1, :, 2] = 0.04                             # walks away: as it faces
-    velocity[2, :, 2] = -0.002                           # barely moves: says nothing
-    velocity[3, :, 0] = 0.04                             # walks across: says nothing
-    velocity[0, 1] = np.nan                              # motion unknown
-    valid = np.ones((4, 3), bool)
-    valid[0, 2] = False
-    flips = facing_flips(forward, velocity, valid)
-    np.testing.assert_array_equal(flips, [[True, False, False], [False] * 3, [False] * 3, [False] * 3])
-    assert not facing_flips(forward, velocity, valid, FacingConfig(enabled=False)).any()
+def _world_facing(facing_z: np.ndarray) -> np.ndarray:
+    """``(len, 33, 3)`` landmarks of upright people (camera axes, +y down) facing +z (1) or -z (-1)."""
+    world = np.zeros((len(facing_z), 33, 3))
+    world[:, 23, 0], world[:, 24, 0] = -facing_z * 0.1, facing_z * 0.1   # facing away: left hip at image left
+    world[:, 11, 0], world[:, 12, 0] = -facing_z * 0.2, facing_z * 0.2
+    world[:, [11, 12], 1] = -0.5                                       # shoulders above the hips
+    return world
+
+
+def test_a_readings_forward_and_its_mirrors_are_opposite():
+    world = _world_facing(np.array([1.0, -1.0]))
+    np.testing.assert_allclose(reading_forward(world), [[0, 0, 1], [0, 0, -1]], atol=1e-12)
+    mirror = mirrored(np.zeros((2, 33, 5)), world, np.ones(2, bool))[1]
+    np.testing.assert_allclose(reading_forward(mirror), -reading_forward(world), atol=1e-12)
+
+
+def test_the_walk_labels_frames_and_turns_carry_it_to_frames_it_cannot_judge():
+    # Truth: a person facing away from the camera (+z) walking away. BlazePose reads the first five
+    # frames and two later ones as facing the camera; the walk is known only from frame 3 on.
+    t = 20
+    read_z = np.ones(t)
+    read_z[[0, 1, 2, 3, 4, 11, 12]] = -1
+    world = _world_facing(read_z)[None]
+    velocity = np.tile([0.0, 0.0, 0.03], (1, t, 1))
+    velocity[0, :3] = np.nan
+    linked, judged = np.ones((1, t), bool), np.ones((1, t), bool)
+    flips = facing_flips(world, velocity, linked, judged)
+    np.testing.assert_array_equal(flips[0], read_z < 0)
+    # Without any walk the turns alone keep the track consistent, with BlazePose's majority reading.
+    standing = facing_flips(world, np.zeros((1, t, 3)), linked, judged)
+    np.testing.assert_array_equal(standing[0], read_z < 0)
+    assert not facing_flips(world, velocity, linked, judged, FacingConfig(enabled=False)).any()
+
+
+def test_frames_not_linked_keep_their_reading_and_unjudged_frames_give_no_evidence():
+    t = 10
+    world = _world_facing(-np.ones(t))[None]          # every frame read as facing the camera
+    towards_away = np.tile([0.0, 0.0, 0.03], (1, t, 1))  # but walking away from it
+    linked = np.ones((1, t), bool)
+    linked[0, 4] = False                              # hips not seen there
+    flips = facing_flips(world, towards_away, linked, np.ones((1, t), bool))
+    np.testing.assert_array_equal(flips[0], linked[0])
+    # The same walk with the legs out of view (a close-up) decides nothing: the reading is kept.
+    assert not facing_flips(world, towards_away, linked, np.zeros((1, t), bool)).any()
+    # A walk across the view or too slow to read says nothing either.
+    across = np.tile([0.03, 0.0, 0.0], (1, t, 1))
+    slow = np.tile([0.0, 0.0, 0.004], (1, t, 1))
+    assert not facing_flips(world, across, linked, np.ones((1, t), bool)).any()
+    assert not facing_flips(world, slow, linked, np.ones((1, t), bool)).any()
 
 
 def _reading(body, orient: np.ndarray, transl: np.ndarray) -> ShotPoses:
