@@ -58,6 +58,7 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
     """
     import numpy as np
 
+    from multithumbs.cpu_kernels import network_kernel_tag
     from multithumbs.scene.focal import FocalConfig, given_focal
     from multithumbs.scene.shots import ShotConfig
     from multithumbs.scene.tracking import TrackingConfig
@@ -98,7 +99,7 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
         lap("focal length")
     tracks = perceive_people(store_url, {"shots": shots_ref},
                              {"video": digest, "spec": spec_fingerprint(perception), "trust": trust_pickle, "K": K,
-                              **body}, video, perception, body_path, device)
+                              "network_kernels": network_kernel_tag(), **body}, video, perception, body_path, device)
     lap("perception")
     if motion_ref is None:
         focal = given_focal(np.asarray(K))

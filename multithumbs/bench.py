@@ -83,6 +83,7 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
     """
     import time
 
+    from multithumbs.cpu_kernels import network_kernel_tag
     from multithumbs.determinism import fix_threads
     from multithumbs.synth.perception import simulate_perception
     from multithumbs.synth.scene import synthesize
@@ -92,7 +93,8 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
     video = synthesize(config, body)
     if inputs in ("pixels", "pixels_no_focal"):
         params = {"scene": config_to_json(config), "stages": list(checked_pixel_stages(pixel_stages)),
-                  "withhold_focal": inputs == "pixels_no_focal", "seed": seed}
+                  "withhold_focal": inputs == "pixels_no_focal", "seed": seed,
+                  "network_kernels": network_kernel_tag()}  # BlazePose's XNNPACK: no switch to pin
         cached = input_cache.load(params) if input_cache is not None else None
         if cached is not None:
             shots, tracks, trajectories, spaces, backends, stage_seconds = cached

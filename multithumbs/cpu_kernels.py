@@ -12,8 +12,8 @@ reads it: numpy and OpenBLAS read theirs when loaded, MKL at its first call, ATe
 have computed pins them. A machine without AVX2 (or not x86-64) is left alone: forcing AVX2 kernels there
 would stop the process, and its bytes are told apart by :func:`kernel_tag`, which every artifact key
 hashes. A value the user set beforehand is kept (their choice), and the tag then says so.
-Not pinned: the tflite runtime's XNNPACK (BlazePose), which has no switch; pycolmap is built without
-run-time dispatch.
+Not pinned: the tflite runtime's XNNPACK (BlazePose), which has no switch; the perception stage's key
+hashes :func:`network_kernel_tag` for it. pycolmap is built without run-time dispatch.
 """
 
 from __future__ import annotations
@@ -101,6 +101,14 @@ def kernel_tag(environ: Mapping[str, str] = os.environ) -> str:
                                    f"numpy_x86_v4={numpy_v4}"])
 
 
+def network_kernel_tag(flags: frozenset[str] | None = None) -> str:
+    """The instruction set the tflite runtime's XNNPACK (BlazePose) computes with: it picks its kernels by
+    the CPU and has no switch, so the perception stage's key hashes this instead (``avx512``, ``avx2`` or
+    ``baseline``)."""
+    flags = cpu_flags() if flags is None else flags
+    return "avx512" if "avx512f" in flags else "avx2" if {"avx2", "fma"} <= flags else "baseline"
+
+
 def _numpy_has_avx512() -> bool:
     """Whether the loaded numpy dispatches to its AVX-512 kernels (it read its switch before the pin)."""
     if "numpy" not in sys.modules:
@@ -112,4 +120,4 @@ def _numpy_has_avx512() -> bool:
     return bool(__cpu_features__.get("X86_V4", False))
 
 
-__all__ = ["PINS", "OPENCV_PIN", "pins_for", "PINNED_TAG", "cpu_flags", "cpu_model", "can_pin", "pin_cpu_kernels", "kernel_tag"]
+__all__ = ["PINS", "OPENCV_PIN", "pins_for", "PINNED_TAG", "cpu_flags", "cpu_model", "can_pin", "pin_cpu_kernels", "kernel_tag", "network_kernel_tag"]

@@ -8,7 +8,7 @@ import sys
 import pytest
 
 from multithumbs.cpu_kernels import (OPENCV_PIN, PINNED_TAG, PINS, can_pin, cpu_flags, kernel_tag,
-                                     pin_cpu_kernels, pins_for)
+                                     network_kernel_tag, pin_cpu_kernels, pins_for)
 
 AVX2 = frozenset({"sse4_2", "avx", "avx2", "fma"})
 
@@ -39,6 +39,12 @@ def test_the_tag_says_pinned_here_and_names_a_differing_switch():
     assert kernel_tag() == PINNED_TAG   # the test process imported multithumbs
     other = kernel_tag({**os.environ, "MKL_CBWR": "AUTO"})
     assert other.startswith("unpinned:") and "MKL_CBWR=AUTO" in other
+
+
+def test_the_network_runtimes_instruction_set_is_named():
+    assert network_kernel_tag(AVX2 | {"avx512f"}) == "avx512"
+    assert network_kernel_tag(AVX2) == "avx2"
+    assert network_kernel_tag(frozenset({"sse4_2"})) == "baseline"
 
 
 def test_a_differing_kernel_tag_changes_every_key(monkeypatch):
