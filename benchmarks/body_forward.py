@@ -11,6 +11,7 @@ import argparse
 import statistics
 import time
 
+import multithumbs  # noqa: F401  (before numpy and torch: it pins the CPU kernels, multithumbs/cpu_kernels.py)
 import torch
 
 from multithumbs.body.model import BodyModel

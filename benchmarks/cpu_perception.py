@@ -29,6 +29,7 @@ import json
 import statistics
 import time
 
+import multithumbs  # noqa: F401  (before numpy and torch: it pins the CPU kernels, multithumbs/cpu_kernels.py)
 import numpy as np
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 
+import multithumbs  # noqa: F401  (before numpy and torch: it pins the CPU kernels, multithumbs/cpu_kernels.py)
 import numpy as np
 
 

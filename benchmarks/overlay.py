@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import cv2
+import multithumbs  # noqa: F401  (before numpy and torch: it pins the CPU kernels, multithumbs/cpu_kernels.py)
 import torch
 
 from multithumbs.body.model import load_body_model

@@ -20,6 +20,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
+import multithumbs  # noqa: F401  (before numpy and torch: it pins the CPU kernels, multithumbs/cpu_kernels.py)
 import numpy as np
 import torch
 

@@ -19,6 +19,7 @@ import statistics
 import time
 
 import cv2
+import multithumbs  # noqa: F401  (before numpy and torch: it pins the CPU kernels, multithumbs/cpu_kernels.py)
 import numpy as np
 import trimesh
 

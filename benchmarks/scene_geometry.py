@@ -21,6 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import multithumbs  # noqa: F401  (before numpy and torch: it pins the CPU kernels, multithumbs/cpu_kernels.py)
 import numpy as np
 
 from multithumbs.body.model import load_body_model

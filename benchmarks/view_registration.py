@@ -19,6 +19,7 @@ import dataclasses
 import statistics
 import time
 
+import multithumbs  # noqa: F401  (before numpy and torch: it pins the CPU kernels, multithumbs/cpu_kernels.py)
 import numpy as np
 
 from multithumbs.body.model import load_body_model
