@@ -1,8 +1,8 @@
 """Artifact keys: sha256 of canonical JSON, chained like a Merkle DAG (DESIGN §5).
 
 A stage's key hashes its name, its version, its parameters, the keys of its inputs, the package
-version and the CPU kernels' tag, so changing one parameter changes that stage's key and every key downstream of it, and nothing
-upstream. Root inputs (video files) are keyed by a streamed digest of their bytes.
+version and the CPU kernels' tag, so changing one parameter changes that stage's key and every key
+downstream of it, and nothing upstream. Root inputs (video files) are keyed by a streamed digest of their bytes.
 """
 
 from __future__ import annotations

@@ -75,14 +75,17 @@ def mirrored(image: np.ndarray, world: np.ndarray, flip: np.ndarray) -> tuple[np
         own hip mid-point (image).
     """
     image, world = np.array(image, dtype=np.float64), np.array(world, dtype=np.float64)
-    order = np.asarray(BLAZEPOSE_MIRROR)
     flip = np.asarray(flip, bool)
-    swapped_image, swapped_world = image[..., order, :], world[..., order, :]
+    swapped_image = image[..., list(BLAZEPOSE_MIRROR), :]
     hips_z = 0.5 * (swapped_image[..., 23:24, 2] + swapped_image[..., 24:25, 2])
     swapped_image[..., 2] = 2 * hips_z - swapped_image[..., 2]
-    swapped_world[..., 2] = -swapped_world[..., 2]
     return (np.where(flip[..., None, None], swapped_image, image),
-            np.where(flip[..., None, None], swapped_world, world))
+            np.where(flip[..., None, None], mirror_world(world), world))
+
+
+def mirror_world(world: np.ndarray) -> np.ndarray:
+    """The mirror reading of world landmarks ``(..., 33, 3)`` (hip-centred): sides exchanged, depth negated."""
+    return np.asarray(world, dtype=np.float64)[..., list(BLAZEPOSE_MIRROR), :] * np.array([1.0, 1.0, -1.0])
 
 
 def body_forward(joints: np.ndarray) -> np.ndarray:
@@ -134,10 +137,8 @@ def facing_flips(world: np.ndarray, velocity: np.ndarray, linked: np.ndarray, ju
     flips = np.zeros(linked.shape, bool)
     if not config.enabled:
         return flips
-    order = list(BLAZEPOSE_MIRROR)
-    mirror = world[..., order, :] * np.array([1.0, 1.0, -1.0])
     # (P, T, 2, 3): the forward of each frame's two readings, BlazePose's then the mirror.
-    forward = np.stack([reading_forward(world), reading_forward(mirror)], axis=-2)
+    forward = np.stack([reading_forward(world), reading_forward(mirror_world(world))], axis=-2)
     known = np.isfinite(velocity).all(-1) & linked & np.asarray(judged, bool)
     motion = np.where(known[..., None], velocity, 0.0)
     speed = np.linalg.norm(motion, axis=-1)
@@ -180,4 +181,4 @@ def legs_seen(image: np.ndarray, min_visibility: float, landmarks: tuple[int, ..
     return np.asarray(image)[..., list(landmarks), 3].min(-1) >= min_visibility
 
 
-__all__ = ["LEG_LANDMARKS", "HIP_LANDMARKS", "legs_seen", "reading_forward", "BLAZEPOSE_MIRROR", "FacingConfig", "mirrored", "body_forward", "root_velocity", "facing_flips"]
+__all__ = ["LEG_LANDMARKS", "HIP_LANDMARKS", "legs_seen", "reading_forward", "BLAZEPOSE_MIRROR", "FacingConfig", "mirrored", "mirror_world", "body_forward", "root_velocity", "facing_flips"]
