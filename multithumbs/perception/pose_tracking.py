@@ -17,7 +17,13 @@ whenever someone was lost), so people who enter, or who come back after an occlu
    pose whose landmarks shrink into a corner of their square (bodies cut by the frame's edge) is not
    taken;
 4. masks: each person's segmentation on the frame, restricted to the square it came from; a pixel
-   goes to the person most sure of it, at probability ≥ 0.5.
+   goes to the person most sure of it, at probability ≥ 0.5 (:mod:`.shot_assembly`).
+
+Each track also keeps a model of its appearance (:mod:`.track_appearance`), learnt in frames where it
+overlaps nobody: a reading unlike it is someone else's and is dropped (step 1), the track whose model fits
+worse is the one that slid in a duplicate (step 3), and a person found again takes the lost track whose
+model fits clearly better than the best-overlapping one's, or, after a gap too long for boxes to mean
+anything (``relink_missed``), the one whose model alone fits (step 2).
 
 The detector is anchored on the face (BlazePose): people seen from behind are found late or not at
 all, and are carried from their landmarks once found. Ids are local to the shot and never reused.
@@ -25,7 +31,6 @@ all, and are carried from their landmarks once found. Ids are local to the shot 
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Iterable
 
@@ -33,6 +38,9 @@ import cv2
 import numpy as np
 
 from multithumbs.perception import blazepose as bp
+from multithumbs.perception.shot_assembly import ShotPoses, assemble, drop_short_runs, landmark_box, settle_frame
+from multithumbs.perception.track_appearance import (clearly_better, model_dissimilarity, reading_descriptor,
+                                                     updated_model)
 
 
 @dataclass(frozen=True)
@@ -74,30 +82,27 @@ class TrackerConfig:
     max_rejections: int = 2
     """Detections a frame may reject (no pose in the landmark pass, someone already followed) before the
     search stops."""
-
-
-@dataclass(frozen=True)
-class ShotPoses:
-    """The people BlazePose followed through one shot (``P`` people, ``T`` frames).
-
-    Attributes:
-        track_ids: ``(P,)`` local ids in order of appearance.
-        image: ``(P, T, 33, 5)`` pixel u, v, z, visibility, presence (0 where not valid).
-        world: ``(P, T, 33, 3)`` metres, origin between the hips, camera-aligned axes.
-        boxes: ``(P, T, 4)`` x0, y0, x1, y1 of the 33 landmarks.
-        masks: ``(P, T, H, ceil(W/8))`` uint8 bit-packed masks.
-        valid: ``(P, T)`` bool.
-        detector_calls, landmark_calls: model invocations, for the speed split.
-    """
-
-    track_ids: np.ndarray
-    image: np.ndarray
-    world: np.ndarray
-    boxes: np.ndarray
-    masks: np.ndarray
-    valid: np.ndarray
-    detector_calls: int = 0
-    landmark_calls: int = 0
+    appearance: bool = True
+    """Let each track's appearance model (:mod:`.track_appearance`) drop readings that slid onto someone
+    else, settle which of two tracks on one person owns it, and pick which lost track is found again."""
+    drift_dissimilarity: float = 0.6
+    """Dissimilarity of a reading to its track's model above which the reading is someone else's (own
+    person: 0.40 at the 95th percentile; others: 0.63 at the 10th)."""
+    appearance_margin: float = 0.15
+    """How much lower one track's dissimilarity must be than every other's for appearance to decide
+    between them; below it the boxes decide (people dressed alike)."""
+    relink_missed: int = 48
+    """Frames (2 s at 24 fps) a lost person can be found again by appearance alone, when no lost track's
+    last box overlaps them."""
+    relink_dissimilarity: float = 0.35
+    """Largest dissimilarity at which appearance alone finds a lost person again."""
+    isolation_iou: float = 0.05
+    """A track's model learns only from frames where its box overlaps nobody else's by more than this."""
+    model_memory: int = 20
+    """Readings a model averages before it becomes a running mean of that length."""
+    min_model_readings: int = 5
+    """Readings a model needs (in a region) before it is asked anything (with 2, early models learnt from
+    a few poor segmentations took the wrong side of a duplicate on the suite's dolly shot)."""
 
 
 @dataclass
@@ -108,16 +113,13 @@ class _Track:
     last: bp.Landmarks | None = None
     before: bp.Landmarks | None = None  # the landmarks before ``last``
     missed: int = 0
+    model: np.ndarray | None = None  # appearance model (track_appearance) and its readings per region
+    model_counts: np.ndarray | None = None
+    descriptors: dict = field(default_factory=dict)  # t -> this frame's reading's descriptor (until settled)
 
     @property
     def box(self) -> np.ndarray:
         return landmark_box(self.last)
-
-
-def landmark_box(landmarks: bp.Landmarks) -> np.ndarray:
-    """``(4,)`` x0, y0, x1, y1 around the 33 pose landmarks."""
-    points = landmarks.image[: bp.NUM_POSE_LANDMARKS, :2]
-    return np.concatenate([points.min(0), points.max(0)])
 
 
 def box_iou(a: np.ndarray, b: np.ndarray) -> float:
@@ -222,13 +224,15 @@ def _find_people(frame: np.ndarray, model, config: TrackerConfig, tracks: list[_
             canvas[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = 127
             _paint_out(canvas, found, config)
             continue
-        overlap = [box_iou(box, tr.box) for tr in lost]
-        if overlap and max(overlap) >= config.revive_iou:
-            tr = lost.pop(int(np.argmax(overlap)))
+        descriptor = _describe(frame, found, config)
+        tr = _lost_track_for(box, descriptor, lost, config)
+        if tr is not None:
+            lost.remove(tr)
         else:
             tr = new_track()
             tracks.append(tr)
         tr.last, tr.frames[t], tr.missed = found, found, 0
+        tr.descriptors[t] = descriptor
         live.append(tr)
         _paint_out(canvas, found, config)
     return calls[0], calls[1]
@@ -252,17 +256,21 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
         image_size = frame.shape[:2]
         for tr in tracks:
             if tr.missed:
-                tr.missed += 1  # ages every lost track; past max_missed it is never revived
+                tr.missed += 1  # ages every lost track; past max_missed only its appearance can revive it
         live = [tr for tr in tracks if tr.missed == 0]
         for tr in live:
             found = model.landmarks(frame, _predicted_roi(tr, t))
             landmark_calls += 1
-            if _plausible(found, config):
-                tr.before, tr.last, tr.frames[t] = tr.last, found, found
-            else:
+            descriptor = _describe(frame, found, config) if _plausible(found, config) else None
+            # A reading unlike the track's own person has slid onto someone else: lost, last seen where it was.
+            if descriptor is None or _dissimilarity(tr, descriptor, config) > config.drift_dissimilarity:
                 tr.missed = 1
+                continue
+            tr.before, tr.last, tr.frames[t] = tr.last, found, found
+            tr.descriptors[t] = descriptor
         live = [tr for tr in live if tr.missed == 0]
-        lost = [tr for tr in tracks if 0 < tr.missed <= config.max_missed]
+        horizon = max(config.max_missed, config.relink_missed) if config.appearance else config.max_missed
+        lost = [tr for tr in tracks if 0 < tr.missed <= horizon]
         if t % config.redetect_every == 0 or lost or not live:
             calls = _find_people(frame, model, config, tracks, live, lost, t, lambda: _Track(len(tracks)))
             detector_calls, landmark_calls = detector_calls + calls[0], landmark_calls + calls[1]
@@ -270,76 +278,80 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
         for i, a in enumerate(live):
             for b in live[i + 1:]:
                 if b.missed == 0 and a.missed == 0 and same_person(a.last, b.last, config):
-                    # b followed a onto a's person (its own was hidden): it is lost, last seen where it was.
-                    b.frames.pop(t, None)
-                    b.last, b.missed = b.before or b.last, 1
-        _settle_frame(tracks, t, config)
+                    # One followed the other onto its person (its own was hidden): it is lost, last seen
+                    # where it was. The one whose model fits worse, else the younger.
+                    slid = _slid_onto_other(a, b, t, config)
+                    slid.frames.pop(t, None)
+                    slid.descriptors.pop(t, None)
+                    slid.last, slid.missed = slid.before or slid.last, 1
+        _learn_appearance(tracks, t, config)
+        settle_frame(tracks, t, config)
         if progress:
             progress(t + 1, None)
     for tr in tracks:
-        _drop_short_runs(tr, config.min_run)
-    return _assemble([tr for tr in tracks if len(tr.frames) >= config.min_frames], t + 1, image_size, config,
+        drop_short_runs(tr, config.min_run)
+    return assemble([tr for tr in tracks if len(tr.frames) >= config.min_frames], t + 1, image_size, config,
                      detector_calls, landmark_calls)
 
 
-def _drop_short_runs(track: _Track, min_run: int) -> None:
-    """Forget a track's frames that are not part of ``min_run`` consecutive ones: an isolated reading has
-    nothing to smooth its depth against (fitting judges depth from body size, frame by frame)."""
-    frames = sorted(track.frames)
-    run: list[int] = []
-    for t in frames + [None]:
-        if run and (t is None or t != run[-1] + 1):
-            if len(run) < min_run:
-                for old in run:
-                    del track.frames[old]
-            run = []
-        if t is not None:
-            run.append(t)
+def _describe(frame: np.ndarray, found: bp.Landmarks, config: TrackerConfig) -> np.ndarray | None:
+    """The reading's appearance descriptor (None with appearance off)."""
+    if not config.appearance:
+        return np.zeros(0)
+    return reading_descriptor(frame, found.segmentation, found.image, config.mask_probability)
 
 
-def _settle_frame(tracks: list[_Track], t: int, config: TrackerConfig) -> None:
-    """Frame ``t``'s masks, now that its people are known: each person's segmentation restricted to the
-    square it came from, a pixel going to the person most sure of it. The frame's landmarks are then kept
-    without their full-frame segmentation (only the last ones keep theirs), so memory grows with the
-    shot's length by masks, not by float images."""
-    present = [tr for tr in tracks if t in tr.frames]
-    if not present:
-        return
-    h, w = present[0].frames[t].segmentation.shape
-    probability = np.zeros((len(present), h, w), np.float32)
-    for k, tr in enumerate(present):
-        found = tr.frames[t]
-        region = np.zeros((h, w), np.uint8)
-        cv2.fillConvexPoly(region, np.round(found.roi.corners()).astype(np.int32), 1)
-        probability[k] = found.segmentation * region
-    owner = probability.argmax(0)
-    confident = probability.max(0) >= config.mask_probability
-    for k, tr in enumerate(present):
-        tr.masks[t] = np.packbits(confident & (owner == k), axis=1)
-        tr.frames[t] = dataclasses.replace(tr.frames[t], segmentation=_NO_SEGMENTATION)
+def _dissimilarity(track: _Track, descriptor: np.ndarray | None, config: TrackerConfig) -> float:
+    """How unlike the track's model a reading is; NaN with appearance off or no model yet."""
+    if not config.appearance:
+        return float("nan")
+    return model_dissimilarity(track.model, track.model_counts, descriptor, config.min_model_readings)
 
 
-_NO_SEGMENTATION = np.zeros((0, 0), np.float32)
+def _lost_track_for(box: np.ndarray, descriptor: np.ndarray, lost: list[_Track],
+                    config: TrackerConfig) -> _Track | None:
+    """The lost track a person found again at ``box`` continues, or None (a new person).
+
+    Recently lost tracks whose last box overlaps by ``revive_iou`` or more are the candidates, the best
+    overlap first, unless another candidate's model fits clearly better. A candidate whose model says the
+    person is someone else is not taken; then, or with no candidate, the lost track whose model alone
+    fits clearly best and closely enough (``relink_dissimilarity``) is taken.
+    """
+    recent = [tr for tr in lost if tr.missed <= config.max_missed]
+    overlap = [box_iou(box, tr.box) for tr in recent]
+    near = [tr for tr, o in zip(recent, overlap) if o >= config.revive_iou]
+    if near:
+        pick = recent[int(np.argmax(overlap))]
+        fits = [_dissimilarity(tr, descriptor, config) for tr in near]
+        better = clearly_better(fits, config.appearance_margin)
+        pick = near[better] if better is not None else pick
+        if not _dissimilarity(pick, descriptor, config) > config.drift_dissimilarity:
+            return pick
+    if not config.appearance:
+        return None
+    fits = [_dissimilarity(tr, descriptor, config) for tr in lost]
+    best = clearly_better(fits, config.appearance_margin)
+    return lost[best] if best is not None and fits[best] <= config.relink_dissimilarity else None
 
 
-def _assemble(tracks: list[_Track], num_frames: int, image_size, config: TrackerConfig, detector_calls: int,
-              landmark_calls: int) -> ShotPoses:
-    h, w = image_size if image_size is not None else (0, 0)
-    p = len(tracks)
-    image = np.zeros((p, num_frames, bp.NUM_POSE_LANDMARKS, 5))
-    world = np.zeros((p, num_frames, bp.NUM_POSE_LANDMARKS, 3))
-    boxes = np.zeros((p, num_frames, 4))
-    valid = np.zeros((p, num_frames), bool)
-    masks = np.zeros((p, num_frames, h, (w + 7) // 8), np.uint8)
-    for i, tr in enumerate(tracks):
-        for t, found in tr.frames.items():
-            image[i, t] = found.image[: bp.NUM_POSE_LANDMARKS]
-            world[i, t] = found.world
-            boxes[i, t] = landmark_box(found)
-            valid[i, t] = True
-            masks[i, t] = tr.masks[t]
-    ids = np.array([tr.track_id for tr in tracks], dtype=np.int64)
-    return ShotPoses(ids, image, world, boxes, masks, valid, detector_calls, landmark_calls)
+def _slid_onto_other(a: _Track, b: _Track, t: int, config: TrackerConfig) -> _Track:
+    """Of two tracks reading one person in frame ``t``, the one that slid there: the one whose model fits
+    its reading clearly worse, else the younger ``b``."""
+    fits = [_dissimilarity(tr, tr.descriptors.get(t), config) for tr in (a, b)]
+    return a if clearly_better(fits, config.appearance_margin) == 1 else b
+
+
+def _learn_appearance(tracks: list[_Track], t: int, config: TrackerConfig) -> None:
+    """Each track read in frame ``t`` whose box overlaps nobody else's learns its reading's appearance."""
+    present = [tr for tr in tracks if t in tr.frames and tr.descriptors.get(t) is not None]
+    boxes = [landmark_box(tr.frames[t]) for tr in present]
+    for i, tr in enumerate(present):
+        if config.appearance and all(box_iou(boxes[i], other) <= config.isolation_iou
+                                     for j, other in enumerate(boxes) if j != i):
+            tr.model, tr.model_counts = updated_model(tr.model, tr.model_counts, tr.descriptors[t],
+                                                      config.model_memory)
+    for tr in tracks:
+        tr.descriptors.clear()
 
 
 __all__ = ["TrackerConfig", "ShotPoses", "track_shot", "landmark_box", "box_iou", "same_person"]
