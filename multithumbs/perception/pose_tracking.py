@@ -317,21 +317,19 @@ def _lost_track_for(box: np.ndarray, descriptor: np.ndarray, lost: list[_Track],
     person is someone else is not taken; then, or with no candidate, the lost track whose model alone
     fits clearly best and closely enough (``relink_dissimilarity``) is taken.
     """
+    fit = {id(tr): _dissimilarity(tr, descriptor, config) for tr in lost}  # each model asked once
     recent = [tr for tr in lost if tr.missed <= config.max_missed]
     overlap = [box_iou(box, tr.box) for tr in recent]
     near = [tr for tr, o in zip(recent, overlap) if o >= config.revive_iou]
     if near:
-        pick = recent[int(np.argmax(overlap))]
-        fits = [_dissimilarity(tr, descriptor, config) for tr in near]
-        better = clearly_better(fits, config.appearance_margin)
-        pick = near[better] if better is not None else pick
-        if not _dissimilarity(pick, descriptor, config) > config.drift_dissimilarity:
+        better = clearly_better([fit[id(tr)] for tr in near], config.appearance_margin)
+        pick = near[better] if better is not None else recent[int(np.argmax(overlap))]
+        if not fit[id(pick)] > config.drift_dissimilarity:
             return pick
     if not config.appearance:
         return None
-    fits = [_dissimilarity(tr, descriptor, config) for tr in lost]
-    best = clearly_better(fits, config.appearance_margin)
-    return lost[best] if best is not None and fits[best] <= config.relink_dissimilarity else None
+    best = clearly_better([fit[id(tr)] for tr in lost], config.appearance_margin)
+    return lost[best] if best is not None and fit[id(lost[best])] <= config.relink_dissimilarity else None
 
 
 def _slid_onto_other(a: _Track, b: _Track, t: int, config: TrackerConfig) -> _Track:

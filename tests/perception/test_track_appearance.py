@@ -6,6 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from multithumbs.perception import blazepose as bp
 from multithumbs.appearance import DESCRIPTOR_SIZE, HUE_BINS, REGION_SIZE, REGIONS, SAT_BINS
 from multithumbs.perception.pose_tracking import TrackerConfig, track_shot
 from multithumbs.perception.track_appearance import (clearly_better, model_dissimilarity, reading_descriptor,
@@ -60,8 +61,6 @@ def test_clearly_better_needs_the_margin():
 def test_reading_descriptor_tells_the_box_people_apart():
     frames = render({0: [(100, 120)], 1: [(300, 120)]}, 1)
     model = ColourModel()
-    from multithumbs.perception import blazepose as bp
-
     readings = [model.landmarks(frames[0], bp.Roi(np.array([x, 126.0]), 200.0, 0.0)) for x in (100, 300)]
     d = [reading_descriptor(frames[0], r.segmentation, r.image) for r in readings]
     assert d[0].shape == (DESCRIPTOR_SIZE,) and d[0].reshape(4, -1)[:, 0].any()
