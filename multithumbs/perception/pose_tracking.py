@@ -17,13 +17,19 @@ whenever someone was lost), so people who enter, or who come back after an occlu
    pose whose landmarks shrink into a corner of their square (bodies cut by the frame's edge) is not
    taken;
 4. masks: each person's segmentation on the frame, restricted to the square it came from; a pixel
-   goes to the person most sure of it, at probability ≥ 0.5 (:mod:`.shot_assembly`).
+   goes to the person most sure of it, at probability ≥ 0.5 (:mod:`.shot_assembly`);
+5. once the shot is read, each run of each track is followed back from where it was found
+   (:mod:`.backfill`): people the face-anchored detector found late are carried back to where the
+   landmark model first sees them.
 
 Each track also keeps a model of its appearance (:mod:`.track_appearance`), learnt in frames where it
 overlaps nobody: a reading unlike it is someone else's and is dropped (step 1), the track whose model fits
 worse is the one that slid in a duplicate (step 3), and a person found again takes the lost track whose
 model fits clearly better than the best-overlapping one's, or, after a gap too long for boxes to mean
-anything (``relink_missed``), the one whose model alone fits (step 2).
+anything (``relink_missed``), the one whose model alone fits (step 2). Readings that fit the model poorly
+but not badly enough to be dropped are not learnt from, and ``split_frames`` of them in a row split the
+track: a hidden person's square has slid onto someone no track followed, who gets a track of their own
+from the first of them, while the hidden person's track is lost with its model intact (step 1).
 
 The detector is anchored on the face (BlazePose): people seen from behind are found late or not at
 all, and are carried from their landmarks once found. Ids are local to the shot and never reused.
@@ -32,15 +38,16 @@ all, and are carried from their landmarks once found. Ids are local to the shot 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Iterable
+from typing import Iterable, Sequence
 
 import cv2
 import numpy as np
 
 from multithumbs.perception import blazepose as bp
+from multithumbs.perception.backfill import backfill
+from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity, plausible, same_person
 from multithumbs.perception.shot_assembly import ShotPoses, assemble, drop_short_runs, landmark_box, settle_frame
-from multithumbs.perception.track_appearance import (clearly_better, model_dissimilarity, reading_descriptor,
-                                                     updated_model)
+from multithumbs.perception.track_appearance import clearly_better, updated_model
 
 
 @dataclass(frozen=True)
@@ -94,6 +101,16 @@ class TrackerConfig:
     relink_missed: int = 48
     """Frames (2 s at 24 fps) a lost person can be found again by appearance alone, when no lost track's
     last box overlaps them."""
+    split_dissimilarity: float = 0.3
+    """Dissimilarity of a reading to its track's model above which it is unlike the track's person: not
+    learnt from, and ``split_frames`` such readings in a row mean the track has moved onto someone else."""
+    split_frames: int = 3
+    """Readings in a row unlike the track's model after which they become a new track, from the first of
+    them, and the old track is lost where it was before them (a hidden person's square slid onto the
+    person in front, whom no track followed)."""
+    split_jump: float = 0.1
+    """How far below ``split_dissimilarity`` the track's typical fit before those readings (the median of
+    its last 5) must be for them to split it: a track whose readings always fitted so-so has not moved."""
     relink_dissimilarity: float = 0.35
     """Largest dissimilarity at which appearance alone finds a lost person again."""
     isolation_iou: float = 0.05
@@ -103,6 +120,9 @@ class TrackerConfig:
     min_model_readings: int = 5
     """Readings a model needs (in a region) before it is asked anything (with 2, early models learnt from
     a few poor segmentations took the wrong side of a duplicate on the suite's dolly shot)."""
+    backfill: int = 120
+    """Frames each run of a track may be followed back from where it was found, once the shot is read
+    (:mod:`.backfill`; 0: off)."""
 
 
 @dataclass
@@ -116,39 +136,12 @@ class _Track:
     model: np.ndarray | None = None  # appearance model (track_appearance) and its readings per region
     model_counts: np.ndarray | None = None
     descriptors: dict = field(default_factory=dict)  # t -> this frame's reading's descriptor (until settled)
+    unlike: list = field(default_factory=list)  # the latest consecutive frames whose readings fit the model poorly
+    fits: list = field(default_factory=list)  # the model's dissimilarity to the last 5 readings that fitted it
 
     @property
     def box(self) -> np.ndarray:
         return landmark_box(self.last)
-
-
-def box_iou(a: np.ndarray, b: np.ndarray) -> float:
-    """Intersection over union of two ``(4,)`` boxes."""
-    inter = np.prod(np.clip(np.minimum(a[2:], b[2:]) - np.maximum(a[:2], b[:2]), 0, None))
-    union = np.prod(a[2:] - a[:2]) + np.prod(b[2:] - b[:2]) - inter
-    return float(inter / union) if union > 0 else 0.0
-
-
-def _plausible(found: bp.Landmarks, config: TrackerConfig) -> bool:
-    """A pose whose flag is up and whose landmarks span a body-sized part of their square: a landmark set
-    shrunk into a corner of it (seen on bodies cut by the frame's edge) is not a person."""
-    box = landmark_box(found)
-    return bool(found.presence >= config.min_presence
-                and max(box[2] - box[0], box[3] - box[1]) >= config.min_extent * found.roi.size)
-
-
-def same_person(a: bp.Landmarks, b: bp.Landmarks, config: TrackerConfig) -> bool:
-    """Two poses on one person: landmark boxes at IoU ≥ ``duplicate_iou`` or one nearly inside the other,
-    or segmentations mostly the same pixels (two readings of one body in different squares, as close-ups
-    give)."""
-    box_a, box_b = landmark_box(a), landmark_box(b)
-    inter = np.prod(np.clip(np.minimum(box_a[2:], box_b[2:]) - np.maximum(box_a[:2], box_b[:2]), 0, None))
-    smaller = min(np.prod(box_a[2:] - box_a[:2]), np.prod(box_b[2:] - box_b[:2]))
-    if box_iou(box_a, box_b) >= config.duplicate_iou or (smaller > 0 and inter / smaller >= config.nested_fraction):
-        return True
-    mask_a, mask_b = a.segmentation >= config.mask_probability, b.segmentation >= config.mask_probability
-    fewer = min(mask_a.sum(), mask_b.sum())
-    return bool(fewer > 0 and (mask_a & mask_b).sum() / fewer >= config.mask_overlap)
 
 
 def _inside(point: np.ndarray, box: np.ndarray) -> bool:
@@ -218,13 +211,13 @@ def _find_people(frame: np.ndarray, model, config: TrackerConfig, tracks: list[_
         found = model.landmarks(frame, bp.roi_from_detection(detection))
         calls[1] += 1
         box = landmark_box(found)
-        if not _plausible(found, config) or _claimed(detection, live) or any(same_person(found, tr.last, config)
+        if not plausible(found, config) or _claimed(detection, live) or any(same_person(found, tr.last, config)
                                                                              for tr in live):
             x0, y0, x1, y1 = np.round(detection.face_box).astype(int)
             canvas[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = 127
             _paint_out(canvas, found, config)
             continue
-        descriptor = _describe(frame, found, config)
+        descriptor = describe(frame, found, config)
         tr = _lost_track_for(box, descriptor, lost, config)
         if tr is not None:
             lost.remove(tr)
@@ -248,6 +241,8 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
             ``detect(image)`` and ``landmarks(image, roi)``).
         progress: optional ``callable(done, total_or_None)`` after each frame.
     """
+    if config.backfill and not isinstance(frames, Sequence | np.ndarray):
+        frames = list(frames)  # the backward fill reads them again
     tracks: list[_Track] = []
     detector_calls = landmark_calls = 0
     image_size = None
@@ -261,14 +256,21 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
         for tr in live:
             found = model.landmarks(frame, _predicted_roi(tr, t))
             landmark_calls += 1
-            descriptor = _describe(frame, found, config) if _plausible(found, config) else None
+            descriptor = describe(frame, found, config) if plausible(found, config) else None
+            fit = dissimilarity(tr, descriptor, config) if descriptor is not None else float("nan")
             # A reading unlike the track's own person has slid onto someone else: lost, last seen where it was.
-            if descriptor is None or _dissimilarity(tr, descriptor, config) > config.drift_dissimilarity:
-                tr.missed = 1
+            if descriptor is None or fit > config.drift_dissimilarity:
+                tr.missed, tr.unlike = 1, []
                 continue
             tr.before, tr.last, tr.frames[t] = tr.last, found, found
             tr.descriptors[t] = descriptor
-        live = [tr for tr in live if tr.missed == 0]
+            if fit > config.split_dissimilarity:
+                tr.unlike.append(t)
+            else:
+                tr.unlike = []
+                tr.fits = (tr.fits + [fit])[-5:] if fit == fit else tr.fits  # NaN: no model to ask yet
+        live = [_split(tr, t, tracks, lambda: _Track(len(tracks))) if _moved(tr, config) else tr
+                for tr in live if tr.missed == 0]
         horizon = max(config.max_missed, config.relink_missed) if config.appearance else config.max_missed
         lost = [tr for tr in tracks if 0 < tr.missed <= horizon]
         if t % config.redetect_every == 0 or lost or not live:
@@ -283,29 +285,16 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
                     slid = _slid_onto_other(a, b, t, config)
                     slid.frames.pop(t, None)
                     slid.descriptors.pop(t, None)
-                    slid.last, slid.missed = slid.before or slid.last, 1
+                    slid.last, slid.missed, slid.unlike = slid.before or slid.last, 1, []
         _learn_appearance(tracks, t, config)
         settle_frame(tracks, t, config)
         if progress:
             progress(t + 1, None)
+    landmark_calls += backfill(tracks, frames, model, config)
     for tr in tracks:
         drop_short_runs(tr, config.min_run)
     return assemble([tr for tr in tracks if len(tr.frames) >= config.min_frames], t + 1, image_size, config,
                      detector_calls, landmark_calls)
-
-
-def _describe(frame: np.ndarray, found: bp.Landmarks, config: TrackerConfig) -> np.ndarray | None:
-    """The reading's appearance descriptor (None with appearance off)."""
-    if not config.appearance:
-        return np.zeros(0)
-    return reading_descriptor(frame, found.segmentation, found.image, config.mask_probability)
-
-
-def _dissimilarity(track: _Track, descriptor: np.ndarray | None, config: TrackerConfig) -> float:
-    """How unlike the track's model a reading is; NaN with appearance off or no model yet."""
-    if not config.appearance:
-        return float("nan")
-    return model_dissimilarity(track.model, track.model_counts, descriptor, config.min_model_readings)
 
 
 def _lost_track_for(box: np.ndarray, descriptor: np.ndarray, lost: list[_Track],
@@ -317,7 +306,7 @@ def _lost_track_for(box: np.ndarray, descriptor: np.ndarray, lost: list[_Track],
     person is someone else is not taken; then, or with no candidate, the lost track whose model alone
     fits clearly best and closely enough (``relink_dissimilarity``) is taken.
     """
-    fit = {id(tr): _dissimilarity(tr, descriptor, config) for tr in lost}  # each model asked once
+    fit = {id(tr): dissimilarity(tr, descriptor, config) for tr in lost}  # each model asked once
     recent = [tr for tr in lost if tr.missed <= config.max_missed]
     overlap = [box_iou(box, tr.box) for tr in recent]
     near = [tr for tr, o in zip(recent, overlap) if o >= config.revive_iou]
@@ -332,10 +321,33 @@ def _lost_track_for(box: np.ndarray, descriptor: np.ndarray, lost: list[_Track],
     return lost[best] if best is not None and fit[id(lost[best])] <= config.relink_dissimilarity else None
 
 
+def _moved(track: _Track, config: TrackerConfig) -> bool:
+    """The track's latest readings are ``split_frames`` in a row unlike a model that used to fit it well."""
+    return bool(len(track.unlike) >= config.split_frames and track.fits
+                and np.median(track.fits) <= config.split_dissimilarity - config.split_jump)
+
+
+def _split(track: _Track, t: int, tracks: list[_Track], new_track) -> _Track:
+    """A track whose latest readings (``track.unlike``) are all unlike its model has moved onto someone
+    else: those readings become a new track, which carries on, and the old one is lost, last seen at its
+    reading before them, with its model kept for when its person is found again. Returns the new track."""
+    moved = new_track()
+    tracks.append(moved)
+    for s in track.unlike:
+        moved.frames[s] = track.frames.pop(s)
+        for kept, taken in ((track.masks, moved.masks), (track.descriptors, moved.descriptors)):
+            if s in kept:
+                taken[s] = kept.pop(s)
+    moved.last, moved.before = track.last, track.before
+    track.last, track.before = track.frames[max(track.frames)], None
+    track.missed, track.unlike = t - min(moved.frames) + 1, []
+    return moved
+
+
 def _slid_onto_other(a: _Track, b: _Track, t: int, config: TrackerConfig) -> _Track:
     """Of two tracks reading one person in frame ``t``, the one that slid there: the one whose model fits
     its reading clearly worse, else the younger ``b``."""
-    fits = [_dissimilarity(tr, tr.descriptors.get(t), config) for tr in (a, b)]
+    fits = [dissimilarity(tr, tr.descriptors.get(t), config) for tr in (a, b)]
     return a if clearly_better(fits, config.appearance_margin) == 1 else b
 
 
@@ -344,7 +356,7 @@ def _learn_appearance(tracks: list[_Track], t: int, config: TrackerConfig) -> No
     present = [tr for tr in tracks if t in tr.frames and tr.descriptors.get(t) is not None]
     boxes = [landmark_box(tr.frames[t]) for tr in present]
     for i, tr in enumerate(present):
-        if config.appearance and all(box_iou(boxes[i], other) <= config.isolation_iou
+        if config.appearance and not tr.unlike and all(box_iou(boxes[i], other) <= config.isolation_iou
                                      for j, other in enumerate(boxes) if j != i):
             tr.model, tr.model_counts = updated_model(tr.model, tr.model_counts, tr.descriptors[t],
                                                       config.model_memory)
