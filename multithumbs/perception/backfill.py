@@ -7,8 +7,9 @@ hidden behind someone, is found frames after they could have been followed: the 
 pass follows forwards: frame ``t - 1``'s square comes from frame ``t``'s landmarks, moved on by their last
 motion. It stops at the track's previous run, after ``backfill`` frames, or at the first reading that is
 not a plausible pose, that fits the track's appearance model poorly (above ``split_dissimilarity``: the
-forward pass does not learn from such readings either), or that lands on a person already followed in
-that frame. A filled frame's mask is its segmentation in its square, less the pixels
+forward pass does not learn from such readings either), or that lands on or near a person already
+followed in that frame (box overlap ≥ ``revive_iou``, or :func:`.pose_checks.same_box`, or mostly their
+pixels). A filled frame's mask is its segmentation in its square, less the pixels
 the frame's other people already own (their masks were settled with the frame).
 """
 
@@ -21,7 +22,7 @@ import cv2
 import numpy as np
 
 from multithumbs.perception import blazepose as bp
-from multithumbs.perception.pose_checks import describe, dissimilarity, plausible, same_box, same_pixels
+from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity, plausible, same_box, same_pixels
 from multithumbs.perception.shot_assembly import landmark_box
 
 if TYPE_CHECKING:  # annotations only: pose_tracking defines the config and the track
@@ -64,9 +65,10 @@ def _fill_before(track: _Track, start: int, tracks: list[_Track], frames: Sequen
         owned = [np.unpackbits(tr.masks[t], axis=1, count=width).astype(bool) for tr in others]
         mine = _square_mask(found, config)
         box = landmark_box(found)
-        if any(same_box(box, landmark_box(tr.frames[t]), config) for tr in others) or any(
+        if any(box_iou(box, landmark_box(tr.frames[t])) >= config.revive_iou or same_box(
+                box, landmark_box(tr.frames[t]), config) for tr in others) or any(
                 same_pixels(mine, theirs, config) for theirs in owned):
-            break
+            break  # near someone followed: a second reading of them, or a crossing boxes cannot settle
         for theirs in owned:
             mine &= ~theirs
         track.frames[t] = dataclasses.replace(found, segmentation=np.zeros((0, 0), np.float32))
