@@ -89,6 +89,32 @@ def pin_cpu_kernels(environ: MutableMapping[str, str] = os.environ, flags: froze
     return added
 
 
+def import_opencv_quietly() -> None:
+    """Import ``cv2`` once with :data:`OPENCV_PIN` set, keeping back the "Trying to disable unknown CPU
+    feature" lines OpenCV writes straight to file descriptor 2 when its build or the OS does not offer a
+    feature the pin names (seen on a VM whose CPU lists AVX-512 but whose OpenCV sees none); anything
+    else it writes is let through."""
+    if "OPENCV_CPU_DISABLE" not in os.environ or "cv2" in sys.modules:
+        return
+    import tempfile
+
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as held:
+        os.dup2(held.fileno(), 2)
+        try:
+            import cv2  # noqa: F401
+        except ImportError:
+            pass  # the modules that need OpenCV say so themselves
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            held.seek(0)
+            rest = [line for line in held.read().decode(errors="replace").splitlines(keepends=True)
+                    if not line.startswith("OPENCV: Trying to disable unknown CPU feature")]
+            sys.stderr.write("".join(rest))
+
+
 def kernel_tag(environ: Mapping[str, str] = os.environ) -> str:
     """:data:`PINNED_TAG` when every pin is in effect in this process; else a description of this CPU and the
     switches that differ, so that bytes made with other kernels never share a key with the pinned ones."""
@@ -120,4 +146,4 @@ def _numpy_has_avx512() -> bool:
     return bool(__cpu_features__.get("X86_V4", False))
 
 
-__all__ = ["PINS", "OPENCV_PIN", "pins_for", "PINNED_TAG", "cpu_flags", "cpu_model", "can_pin", "pin_cpu_kernels", "kernel_tag", "network_kernel_tag"]
+__all__ = ["PINS", "OPENCV_PIN", "pins_for", "import_opencv_quietly", "PINNED_TAG", "cpu_flags", "cpu_model", "can_pin", "pin_cpu_kernels", "kernel_tag", "network_kernel_tag"]
