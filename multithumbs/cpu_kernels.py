@@ -24,6 +24,8 @@ import platform
 import sys
 from typing import Mapping, MutableMapping
 
+from multithumbs.native_stderr import native_stderr_held
+
 PINS: Mapping[str, str] = {
     "MKL_CBWR": "AVX2",
     "ATEN_CPU_CAPABILITY": "avx2",
@@ -91,28 +93,21 @@ def pin_cpu_kernels(environ: MutableMapping[str, str] = os.environ, flags: froze
 
 def import_opencv_quietly() -> None:
     """Import ``cv2`` once with :data:`OPENCV_PIN` set, keeping back the "Trying to disable unknown CPU
-    feature" lines OpenCV writes straight to file descriptor 2 when its build or the OS does not offer a
-    feature the pin names (seen on a VM whose CPU lists AVX-512 but whose OpenCV sees none); anything
-    else it writes is let through."""
+    feature" lines OpenCV writes to file descriptor 2 when its build or the OS does not offer a feature the
+    pin names (seen on a VM whose CPU lists AVX-512 but whose OpenCV sees none); anything else it writes
+    is let through."""
     if "OPENCV_CPU_DISABLE" not in os.environ or "cv2" in sys.modules:
         return
-    import tempfile
 
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile() as held:
-        os.dup2(held.fileno(), 2)
+    def others(text: str, failed: bool) -> str:
+        return "".join(line for line in text.splitlines(keepends=True)
+                       if not line.startswith("OPENCV: Trying to disable unknown CPU feature"))
+
+    with native_stderr_held(others):
         try:
             import cv2  # noqa: F401
         except ImportError:
             pass  # the modules that need OpenCV say so themselves
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            held.seek(0)
-            rest = [line for line in held.read().decode(errors="replace").splitlines(keepends=True)
-                    if not line.startswith("OPENCV: Trying to disable unknown CPU feature")]
-            sys.stderr.write("".join(rest))
 
 
 def kernel_tag(environ: Mapping[str, str] = os.environ) -> str:

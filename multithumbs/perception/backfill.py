@@ -18,12 +18,12 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING, Sequence
 
-import cv2
 import numpy as np
 
 from multithumbs.perception import blazepose as bp
-from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity, plausible, same_box, same_pixels
-from multithumbs.perception.shot_assembly import landmark_box
+from multithumbs.perception.pose_checks import (box_iou, describe, dissimilarity, moved_square, plausible, same_box,
+                                                same_pixels)
+from multithumbs.perception.shot_assembly import NO_SEGMENTATION, landmark_box
 
 if TYPE_CHECKING:  # annotations only: pose_tracking defines the config and the track
     from multithumbs.perception.pose_tracking import TrackerConfig, _Track
@@ -31,21 +31,15 @@ if TYPE_CHECKING:  # annotations only: pose_tracking defines the config and the 
 
 def backward_roi(track: _Track, t: int) -> bp.Roi:
     """Frame ``t``'s square for a track read in frame ``t + 1``: that reading's square, moved on by the
-    motion from ``t + 2`` to ``t + 1`` (damped, as forwards)."""
-    after = track.frames[t + 1]
-    roi = bp.roi_from_landmarks(after)
-    further = track.frames.get(t + 2)
-    if further is None:
-        return roi
-    step = 0.5 * (after.image[33, :2] - further.image[33, :2])
-    return bp.Roi(roi.centre + step, roi.size, roi.rotation)
+    motion from ``t + 2`` to ``t + 1`` (:func:`.pose_checks.moved_square`, as forwards)."""
+    return moved_square(track.frames[t + 1], track.frames.get(t + 2))
 
 
-def _square_mask(found: bp.Landmarks, config: TrackerConfig) -> np.ndarray:
-    """``(H, W)`` bool: the reading's segmentation inside the square it came from."""
-    region = np.zeros(found.segmentation.shape, np.uint8)
-    cv2.fillConvexPoly(region, np.round(found.roi.corners()).astype(np.int32), 1)
-    return (found.segmentation >= config.mask_probability) & (region > 0)
+def _near_someone(box: np.ndarray, others: list[_Track], t: int, config: TrackerConfig) -> bool:
+    """A landmark box overlapping one of ``others``' in frame ``t`` by ``revive_iou`` or more, or on the
+    same person by :func:`.pose_checks.same_box` (nearly inside)."""
+    return any(box_iou(box, theirs) >= config.revive_iou or same_box(box, theirs, config)
+               for theirs in (landmark_box(tr.frames[t]) for tr in others))
 
 
 def _fill_before(track: _Track, start: int, tracks: list[_Track], frames: Sequence[np.ndarray], model,
@@ -53,25 +47,23 @@ def _fill_before(track: _Track, start: int, tracks: list[_Track], frames: Sequen
     """Follow ``track`` back from frame ``start`` (module docstring). Returns the landmark calls made."""
     calls = 0
     t = start - 1
-    width = frames[0].shape[1]
     while t >= 0 and t not in track.frames and start - t <= config.backfill:
         found = model.landmarks(frames[t], backward_roi(track, t))
         calls += 1
-        if not plausible(found, config):
+        others = [tr for tr in tracks if tr is not track and t in tr.frames]
+        # near someone followed: a second reading of them, or a crossing boxes cannot settle
+        if not plausible(found, config) or _near_someone(landmark_box(found), others, t, config):
             break
         if dissimilarity(track, describe(frames[t], found, config), config) > config.split_dissimilarity:
             break  # only readings like the track's person (forwards, those above it are not learnt from)
-        others = [tr for tr in tracks if tr is not track and t in tr.frames]
-        owned = [np.unpackbits(tr.masks[t], axis=1, count=width).astype(bool) for tr in others]
-        mine = _square_mask(found, config)
-        box = landmark_box(found)
-        if any(box_iou(box, landmark_box(tr.frames[t])) >= config.revive_iou or same_box(
-                box, landmark_box(tr.frames[t]), config) for tr in others) or any(
-                same_pixels(mine, theirs, config) for theirs in owned):
-            break  # near someone followed: a second reading of them, or a crossing boxes cannot settle
+        shape = found.segmentation.shape
+        mine = (found.segmentation >= config.mask_probability) & found.roi.mask(shape)
+        owned = [np.unpackbits(tr.masks[t], axis=1, count=shape[1]).astype(bool) for tr in others]
+        if any(same_pixels(mine, theirs, config) for theirs in owned):
+            break
         for theirs in owned:
             mine &= ~theirs
-        track.frames[t] = dataclasses.replace(found, segmentation=np.zeros((0, 0), np.float32))
+        track.frames[t] = dataclasses.replace(found, segmentation=NO_SEGMENTATION)
         track.masks[t] = np.packbits(mine, axis=1)
         t -= 1
     return calls

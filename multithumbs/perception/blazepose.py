@@ -86,6 +86,12 @@ class Roi:
         offsets = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]]) * self.size
         return self.centre + offsets @ _rotation(self.rotation).T
 
+    def mask(self, shape: tuple[int, int]) -> np.ndarray:
+        """``(H, W)`` bool: the pixels of an ``(H, W)`` frame inside the square."""
+        region = np.zeros(shape, np.uint8)
+        cv2.fillConvexPoly(region, np.round(self.corners()).astype(np.int32), 1)
+        return region > 0
+
 
 @dataclass(frozen=True)
 class Landmarks:

@@ -1,5 +1,5 @@
 """What the tracker asks of a reading: is it a person, is it the same person as another, how unlike its
-track's appearance is it. Shared by the forward pass (:mod:`.pose_tracking`) and the backward fill
+track's appearance is it, and where to read that person next. Shared by the forward pass (:mod:`.pose_tracking`) and the backward fill
 (:mod:`.backfill`)."""
 
 from __future__ import annotations
@@ -52,6 +52,17 @@ def same_person(a: bp.Landmarks, b: bp.Landmarks, config: TrackerConfig) -> bool
     return same_pixels(a.segmentation >= config.mask_probability, b.segmentation >= config.mask_probability, config)
 
 
+def moved_square(reading: bp.Landmarks, earlier: bp.Landmarks | None) -> bp.Roi:
+    """The square ``reading``'s landmarks give, moved on by their hips' motion since ``earlier`` (None:
+    not moved), damped by half: landmark jitter is not motion. Forwards ``earlier`` is the frame before,
+    backwards (:mod:`.backfill`) the frame after."""
+    roi = bp.roi_from_landmarks(reading)
+    if earlier is None:
+        return roi
+    step = 0.5 * (reading.image[33, :2] - earlier.image[33, :2])
+    return bp.Roi(roi.centre + step, roi.size, roi.rotation)
+
+
 def describe(frame: np.ndarray, found: bp.Landmarks, config: TrackerConfig) -> np.ndarray:
     """The reading's appearance descriptor (empty with appearance off)."""
     if not config.appearance:
@@ -66,4 +77,5 @@ def dissimilarity(track: _Track, descriptor: np.ndarray | None, config: TrackerC
     return model_dissimilarity(track.model, track.model_counts, descriptor, config.min_model_readings)
 
 
-__all__ = ["box_iou", "plausible", "same_box", "same_pixels", "same_person", "describe", "dissimilarity"]
+__all__ = ["box_iou", "plausible", "same_box", "same_pixels", "same_person", "moved_square", "describe",
+           "dissimilarity"]

@@ -40,12 +40,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
-import cv2
 import numpy as np
 
 from multithumbs.perception import blazepose as bp
 from multithumbs.perception.backfill import backfill
-from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity, plausible, same_person
+from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity, moved_square, plausible, same_person
 from multithumbs.perception.shot_assembly import ShotPoses, assemble, drop_short_runs, landmark_box, settle_frame
 from multithumbs.perception.track_appearance import clearly_better, updated_model
 
@@ -157,19 +156,12 @@ def _claimed(detection: bp.Detection, live: list[_Track]) -> bool:
 def _predicted_roi(track: _Track, t: int) -> bp.Roi:
     """This frame's square for a track: its last landmarks' square moved on by their last motion (constant
     velocity), so that two people crossing each other keep looking at their own person."""
-    roi = bp.roi_from_landmarks(track.last)
-    previous = track.frames.get(t - 2)
-    if previous is None or t - 1 not in track.frames:
-        return roi
-    step = 0.5 * (track.last.image[33, :2] - previous.image[33, :2])  # damped: landmark jitter is not motion
-    return bp.Roi(roi.centre + step, roi.size, roi.rotation)
+    return moved_square(track.last, track.frames.get(t - 2) if t - 1 in track.frames else None)
 
 
 def _paint_out(canvas: np.ndarray, found: bp.Landmarks, config: TrackerConfig) -> None:
     """Grey out a person the detector has already given, so that its next pass finds someone else."""
-    region = np.zeros(canvas.shape[:2], np.uint8)
-    cv2.fillConvexPoly(region, np.round(found.roi.corners()).astype(np.int32), 1)
-    canvas[(found.segmentation >= config.paint_probability) & (region > 0)] = 127
+    canvas[(found.segmentation >= config.paint_probability) & found.roi.mask(canvas.shape[:2])] = 127
 
 
 def _best_detection(canvas: np.ndarray, model, config: TrackerConfig) -> tuple[bp.Detection | None, int]:
@@ -268,7 +260,8 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
                 tr.unlike.append(t)
             else:
                 tr.unlike = []
-                tr.fits = (tr.fits + [fit])[-5:] if fit == fit else tr.fits  # NaN: no model to ask yet
+                if fit == fit:  # NaN: no model to ask yet
+                    tr.fits = (tr.fits + [fit])[-5:]
         live = [_split(tr, t, tracks, lambda: _Track(len(tracks))) if _moved(tr, config) else tr
                 for tr in live if tr.missed == 0]
         horizon = max(config.max_missed, config.relink_missed) if config.appearance else config.max_missed

@@ -7,7 +7,6 @@ import dataclasses
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
 from multithumbs.perception import blazepose as bp
@@ -73,17 +72,16 @@ def settle_frame(tracks: list[_Track], t: int, config: TrackerConfig) -> None:
     probability = np.zeros((len(present), h, w), np.float32)
     for k, tr in enumerate(present):
         found = tr.frames[t]
-        region = np.zeros((h, w), np.uint8)
-        cv2.fillConvexPoly(region, np.round(found.roi.corners()).astype(np.int32), 1)
-        probability[k] = found.segmentation * region
+        probability[k] = found.segmentation * found.roi.mask((h, w))
     owner = probability.argmax(0)
     confident = probability.max(0) >= config.mask_probability
     for k, tr in enumerate(present):
         tr.masks[t] = np.packbits(confident & (owner == k), axis=1)
-        tr.frames[t] = dataclasses.replace(tr.frames[t], segmentation=_NO_SEGMENTATION)
+        tr.frames[t] = dataclasses.replace(tr.frames[t], segmentation=NO_SEGMENTATION)
 
 
-_NO_SEGMENTATION = np.zeros((0, 0), np.float32)
+NO_SEGMENTATION = np.zeros((0, 0), np.float32)
+"""What a settled reading keeps of its full-frame segmentation (its mask is in the track's ``masks``)."""
 
 
 def assemble(tracks: list[_Track], num_frames: int, image_size, config: TrackerConfig, detector_calls: int,
@@ -106,4 +104,4 @@ def assemble(tracks: list[_Track], num_frames: int, image_size, config: TrackerC
     return ShotPoses(ids, image, world, boxes, masks, valid, detector_calls, landmark_calls)
 
 
-__all__ = ["ShotPoses", "landmark_box", "drop_short_runs", "settle_frame", "assemble"]
+__all__ = ["ShotPoses", "NO_SEGMENTATION", "landmark_box", "drop_short_runs", "settle_frame", "assemble"]
