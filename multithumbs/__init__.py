@@ -3,9 +3,8 @@
 Conventions (cameras, units, frames, SMPL order) are stated once in :mod:`multithumbs.conventions`.
 """
 
-from multithumbs.cpu_kernels import import_opencv_quietly, pin_cpu_kernels
+from multithumbs.cpu_kernels import pin_cpu_kernels
 
 pin_cpu_kernels()  # before numpy or torch compute: the same kernels, so the same bytes, on any AVX2 machine
-import_opencv_quietly()
 
 __version__ = "0.1.0"

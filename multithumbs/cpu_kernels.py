@@ -24,8 +24,6 @@ import platform
 import sys
 from typing import Mapping, MutableMapping
 
-from multithumbs.native_stderr import native_stderr_held
-
 PINS: Mapping[str, str] = {
     "MKL_CBWR": "AVX2",
     "ATEN_CPU_CAPABILITY": "avx2",
@@ -34,15 +32,26 @@ PINS: Mapping[str, str] = {
 }
 """Environment variable -> the value that selects each library's AVX2 kernels (or turns its AVX-512 ones off)."""
 
-OPENCV_PIN: Mapping[str, str] = {
-    "OPENCV_CPU_DISABLE": "AVX512_SKX,AVX512_COMMON,AVX512_KNL,AVX512_KNM,AVX512_CNL,AVX512_CLX,AVX512_ICL"}
-"""OpenCV's AVX-512 kernels turned off; set only on CPUs that have AVX-512 (OpenCV warns on every import
-about turning off a feature the CPU lacks)."""
+OPENCV_TARGETS: tuple[tuple[str, frozenset[str]], ...] = (
+    ("AVX512-SKX", frozenset({"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"})),
+    ("AVX512-CLX", frozenset({"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl", "avx512_vnni"})))
+"""The AVX-512 targets OpenCV's wheels dispatch to (``cv2.getCPUFeaturesLine()``: ``... *AVX2 *AVX512-SKX
+*AVX512-CLX``; disabling one does not disable the other), each with the CPU flags it needs. OpenCV spells
+them with a hyphen: the underscored names it called "unknown" on every import, and disabled nothing."""
+OPENCV_PIN: Mapping[str, str] = {"OPENCV_CPU_DISABLE": ",".join(name for name, _ in OPENCV_TARGETS)}
+"""OpenCV's AVX-512 kernels turned off, on a CPU that has them all."""
+
+
+def _opencv_pin(flags: frozenset[str]) -> dict[str, str]:
+    """``OPENCV_CPU_DISABLE`` of the targets this CPU has (OpenCV warns on every import about turning off
+    one it lacks), or nothing."""
+    names = [name for name, needed in OPENCV_TARGETS if needed <= flags]
+    return {"OPENCV_CPU_DISABLE": ",".join(names)} if names else {}
 
 
 def pins_for(flags: frozenset[str]) -> dict[str, str]:
     """The variables :func:`pin_cpu_kernels` sets on a CPU with these flags (which must :func:`can_pin`)."""
-    return {**PINS, **(OPENCV_PIN if "avx512f" in flags else {})}
+    return {**PINS, **_opencv_pin(flags)}
 
 
 PINNED_TAG = "x86-64-v3"
@@ -91,25 +100,6 @@ def pin_cpu_kernels(environ: MutableMapping[str, str] = os.environ, flags: froze
     return added
 
 
-def import_opencv_quietly() -> None:
-    """Import ``cv2`` once with :data:`OPENCV_PIN` set, keeping back the "Trying to disable unknown CPU
-    feature" lines OpenCV writes to file descriptor 2 when its build or the OS does not offer a feature the
-    pin names (seen on a VM whose CPU lists AVX-512 but whose OpenCV sees none); anything else it writes
-    is let through."""
-    if "OPENCV_CPU_DISABLE" not in os.environ or "cv2" in sys.modules:
-        return
-
-    def others(text: str, failed: bool) -> str:
-        return "".join(line for line in text.splitlines(keepends=True)
-                       if not line.startswith("OPENCV: Trying to disable unknown CPU feature"))
-
-    with native_stderr_held(others):
-        try:
-            import cv2  # noqa: F401
-        except ImportError:
-            pass  # the modules that need OpenCV say so themselves
-
-
 def kernel_tag(environ: Mapping[str, str] = os.environ) -> str:
     """:data:`PINNED_TAG` when every pin is in effect in this process; else a description of this CPU and the
     switches that differ, so that bytes made with other kernels never share a key with the pinned ones."""
@@ -141,4 +131,4 @@ def _numpy_has_avx512() -> bool:
     return bool(__cpu_features__.get("X86_V4", False))
 
 
-__all__ = ["PINS", "OPENCV_PIN", "pins_for", "import_opencv_quietly", "PINNED_TAG", "cpu_flags", "cpu_model", "can_pin", "pin_cpu_kernels", "kernel_tag", "network_kernel_tag"]
+__all__ = ["PINS", "OPENCV_TARGETS", "OPENCV_PIN", "pins_for", "PINNED_TAG", "cpu_flags", "cpu_model", "can_pin", "pin_cpu_kernels", "kernel_tag", "network_kernel_tag"]

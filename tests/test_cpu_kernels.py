@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from multithumbs.cpu_kernels import (OPENCV_PIN, PINNED_TAG, PINS, can_pin, cpu_flags, kernel_tag,
+from multithumbs.cpu_kernels import (OPENCV_PIN, OPENCV_TARGETS, PINNED_TAG, PINS, can_pin, cpu_flags, kernel_tag,
                                      network_kernel_tag, pin_cpu_kernels, pins_for)
 
 AVX2 = frozenset({"sse4_2", "avx", "avx2", "fma"})
@@ -21,9 +21,29 @@ def test_pins_are_set_on_an_avx2_cpu_and_a_users_value_is_kept():
     assert "OPENCV_CPU_DISABLE" not in environ   # no AVX-512 here: OpenCV would warn
 
 
+SKX = frozenset({"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"})
+
+
 def test_opencv_is_pinned_only_where_avx512_exists():
-    assert pins_for(AVX2 | {"avx512f"}) == {**PINS, **OPENCV_PIN}
+    assert pins_for(AVX2 | SKX | {"avx512_vnni"}) == {**PINS, **OPENCV_PIN}
+    assert pins_for(AVX2 | SKX) == {**PINS, "OPENCV_CPU_DISABLE": "AVX512-SKX"}  # no VNNI: CLX left alone
+    assert pins_for(AVX2 | {"avx512f"}) == dict(PINS)
     assert pins_for(AVX2) == dict(PINS)
+
+
+def test_opencv_knows_the_pins_names_and_stops_dispatching_to_them():
+    # OpenCV itself is the judge: it writes "unknown CPU feature" for a name it does not have, and marks
+    # a dispatched target it will not use with "?" in its features line
+    env = {k: v for k, v in os.environ.items() if k != "OPENCV_CPU_DISABLE"}
+    script = "import cv2; print(cv2.getCPUFeaturesLine())"
+    free = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
+    pinned = subprocess.run([sys.executable, "-c", script], env={**env, **OPENCV_PIN}, capture_output=True,
+                            text=True, check=True)
+    assert "unknown CPU feature" not in pinned.stderr
+    free_line, pinned_line = free.stdout.split(), pinned.stdout.split()
+    dispatched = [name for name, _ in OPENCV_TARGETS if {f"*{name}", f"*{name}?"} & set(free_line)]
+    assert "AVX512-SKX" in dispatched  # every wheel since 4.x ("?": not on this CPU); 5.x adds CLX
+    assert all(f"*{name}?" in pinned_line for name in dispatched)
 
 
 @pytest.mark.parametrize("flags, machine", [(frozenset({"sse4_2", "avx"}), "x86_64"), (AVX2, "aarch64"),

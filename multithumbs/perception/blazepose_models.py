@@ -10,6 +10,7 @@ Folder: ``$MULTITHUMBS_BLAZEPOSE_DIR`` when set, else ``<venv>/share/multithumbs
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import subprocess
@@ -21,7 +22,6 @@ from pathlib import Path
 import numpy as np
 
 from multithumbs.errors import InputError
-from multithumbs.native_stderr import native_stderr_held
 from multithumbs.perception import blazepose as bp
 
 MEDIAPIPE_WHEEL = "mediapipe==0.10.21"
@@ -92,6 +92,27 @@ def install_models(folder: Path | None = None, wheel: Path | None = None) -> Pat
     return folder
 
 
+@contextlib.contextmanager
+def _native_stderr_kept_back():
+    """The runtime's C++ logging writes "INFO: Created TensorFlow Lite XNNPACK delegate" straight to file
+    descriptor 2 on every load, which no Python setting silences: hold it back, and let it through only when
+    loading fails (then it may say why)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as held:
+        os.dup2(held.fileno(), 2)
+        try:
+            yield
+        except BaseException:
+            os.dup2(saved, 2)
+            held.seek(0)
+            sys.stderr.write(held.read().decode(errors="replace"))
+            raise
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
 class BlazePose:
     """The loaded detector and landmark model (``ai_edge_litert`` interpreters, ``num_threads`` each).
 
@@ -104,9 +125,7 @@ class BlazePose:
         from ai_edge_litert.interpreter import Interpreter
 
         folder = check_models(folder)
-        # The runtime's C++ logging writes "INFO: Created TensorFlow Lite XNNPACK delegate" to file
-        # descriptor 2 on every load, which no Python setting silences: shown only if loading fails.
-        with native_stderr_held(lambda text, failed: text if failed else ""):
+        with _native_stderr_kept_back():
             self._detector = Interpreter(model_path=str(folder / "pose_detection.tflite"), num_threads=num_threads)
             self._landmarker = Interpreter(model_path=str(folder / "pose_landmark_full.tflite"),
                                            num_threads=num_threads)
