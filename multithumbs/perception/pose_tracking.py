@@ -29,7 +29,8 @@ model fits clearly better than the best-overlapping one's, or, after a gap too l
 anything (``relink_missed``), the one whose model alone fits (step 2). Readings that fit the model poorly
 but not badly enough to be dropped are not learnt from, and ``split_frames`` of them in a row split the
 track: a hidden person's square has slid onto someone no track followed, who gets a track of their own
-from the first of them, while the hidden person's track is lost with its model intact (step 1).
+from the first of them, while the hidden person's track is lost with its model intact (step 1;
+:mod:`.track_split`, which also merges a split back when its readings come to fit the old model again).
 
 The detector is anchored on the face (BlazePose): people seen from behind are found late or not at
 all, and are carried from their landmarks once found. Ids are local to the shot and never reused.
@@ -47,6 +48,7 @@ from multithumbs.perception.backfill import backfill
 from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity, moved_square, plausible, same_person
 from multithumbs.perception.shot_assembly import ShotPoses, assemble, drop_short_runs, landmark_box, settle_frame
 from multithumbs.perception.track_appearance import clearly_better, updated_model
+from multithumbs.perception.track_split import merged_back, moved, split
 
 
 @dataclass(frozen=True)
@@ -72,6 +74,10 @@ class TrackerConfig:
     """Share of the smaller of two landmark boxes inside the larger that also means one person."""
     mask_overlap: float = 0.7
     """Share of the smaller of two segmentations inside the other that also means one person."""
+    min_height: float = 0.1
+    """Smallest height of a detection's landmark box, as a share of the frame's, for it to start or revive
+    a track: figures in the suite's posters read as people with a sure flag and were followed for seconds
+    (the smallest person the figures count is 80 px of 360, 0.22)."""
     min_extent: float = 0.3
     """Smallest long side of a pose's landmark box, as a share of its square's side, for it to count."""
     min_run: int = 3
@@ -110,6 +116,9 @@ class TrackerConfig:
     split_jump: float = 0.1
     """How far below ``split_dissimilarity`` the track's typical fit before those readings (the median of
     its last 5) must be for them to split it: a track whose readings always fitted so-so has not moved."""
+    merge_splits: bool = True
+    """Give a split-off track's frames back to the track it came from when ``split_frames`` of its readings
+    in a row fit that track's model well again (:mod:`.track_split`: its own person read poorly)."""
     relink_dissimilarity: float = 0.35
     """Largest dissimilarity at which appearance alone finds a lost person again."""
     isolation_iou: float = 0.05
@@ -137,6 +146,8 @@ class _Track:
     descriptors: dict = field(default_factory=dict)  # t -> this frame's reading's descriptor (until settled)
     unlike: list = field(default_factory=list)  # the latest consecutive frames whose readings fit the model poorly
     fits: list = field(default_factory=list)  # the model's dissimilarity to the last 5 readings that fitted it
+    split_from: "_Track | None" = None  # the track this one was split from, while it may still be merged back
+    alike: int = 0  # this track's latest readings in a row that fit ``split_from``'s model well
 
     @property
     def box(self) -> np.ndarray:
@@ -203,7 +214,8 @@ def _find_people(frame: np.ndarray, model, config: TrackerConfig, tracks: list[_
         found = model.landmarks(frame, bp.roi_from_detection(detection))
         calls[1] += 1
         box = landmark_box(found)
-        if not plausible(found, config) or _claimed(detection, live) or any(same_person(found, tr.last, config)
+        small = box[3] - box[1] < config.min_height * frame.shape[0]
+        if small or not plausible(found, config) or _claimed(detection, live) or any(same_person(found, tr.last, config)
                                                                              for tr in live):
             x0, y0, x1, y1 = np.round(detection.face_box).astype(int)
             canvas[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = 127
@@ -245,6 +257,7 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
             if tr.missed:
                 tr.missed += 1  # ages every lost track; past max_missed only its appearance can revive it
         live = [tr for tr in tracks if tr.missed == 0]
+        horizon = max(config.max_missed, config.relink_missed) if config.appearance else config.max_missed
         for tr in live:
             found = model.landmarks(frame, _predicted_roi(tr, t))
             landmark_calls += 1
@@ -256,15 +269,16 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
                 continue
             tr.before, tr.last, tr.frames[t] = tr.last, found, found
             tr.descriptors[t] = descriptor
+            if config.merge_splits and tr.split_from is not None and merged_back(tr, descriptor, config, horizon):
+                continue
             if fit > config.split_dissimilarity:
                 tr.unlike.append(t)
             else:
                 tr.unlike = []
                 if fit == fit:  # NaN: no model to ask yet
                     tr.fits = (tr.fits + [fit])[-5:]
-        live = [_split(tr, t, tracks, lambda: _Track(len(tracks))) if _moved(tr, config) else tr
-                for tr in live if tr.missed == 0]
-        horizon = max(config.max_missed, config.relink_missed) if config.appearance else config.max_missed
+        live = [split(tr, t, tracks, lambda: _Track(len(tracks))) if moved(tr, config) else tr
+                for tr in list(tracks) if tr.missed == 0]
         lost = [tr for tr in tracks if 0 < tr.missed <= horizon]
         if t % config.redetect_every == 0 or lost or not live:
             calls = _find_people(frame, model, config, tracks, live, lost, t, lambda: _Track(len(tracks)))
@@ -312,29 +326,6 @@ def _lost_track_for(box: np.ndarray, descriptor: np.ndarray, lost: list[_Track],
         return None
     best = clearly_better([fit[id(tr)] for tr in lost], config.appearance_margin)
     return lost[best] if best is not None and fit[id(lost[best])] <= config.relink_dissimilarity else None
-
-
-def _moved(track: _Track, config: TrackerConfig) -> bool:
-    """The track's latest readings are ``split_frames`` in a row unlike a model that used to fit it well."""
-    return bool(len(track.unlike) >= config.split_frames and track.fits
-                and np.median(track.fits) <= config.split_dissimilarity - config.split_jump)
-
-
-def _split(track: _Track, t: int, tracks: list[_Track], new_track) -> _Track:
-    """A track whose latest readings (``track.unlike``) are all unlike its model has moved onto someone
-    else: those readings become a new track, which carries on, and the old one is lost, last seen at its
-    reading before them, with its model kept for when its person is found again. Returns the new track."""
-    moved = new_track()
-    tracks.append(moved)
-    for s in track.unlike:
-        moved.frames[s] = track.frames.pop(s)
-        for kept, taken in ((track.masks, moved.masks), (track.descriptors, moved.descriptors)):
-            if s in kept:
-                taken[s] = kept.pop(s)
-    moved.last, moved.before = track.last, track.before
-    track.last, track.before = track.frames[max(track.frames)], None
-    track.missed, track.unlike = t - min(moved.frames) + 1, []
-    return moved
 
 
 def _slid_onto_other(a: _Track, b: _Track, t: int, config: TrackerConfig) -> _Track:

@@ -154,3 +154,13 @@ def test_redetection_interval_bounds_detector_calls():
 def test_box_iou():
     assert box_iou(np.array([0, 0, 2, 2.0]), np.array([1, 1, 3, 3.0])) == pytest.approx(1 / 7)
     assert box_iou(np.array([0, 0, 1, 1.0]), np.array([2, 2, 3, 3.0])) == 0.0
+
+
+def test_a_figure_smaller_than_min_height_starts_no_track():
+    # a 12 x 20 px "person" (a figure in a poster) beside a real one: 20 px is 0.08 of the frame's height
+    frames = render({0: [(100, 120)] * 10}, 10)
+    for frame in frames:
+        frame[40:60, 300:312] = COLOURS[1]
+    poses = track_shot(frames, ColourModel())
+    assert len(poses.track_ids) == 1
+    assert len(track_shot(frames, ColourModel(), TrackerConfig(min_height=0.05)).track_ids) == 2
