@@ -24,11 +24,15 @@ def box_iou(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def plausible(found: bp.Landmarks, config: TrackerConfig) -> bool:
-    """A pose whose flag is up and whose landmarks span a body-sized part of their square: a landmark set
-    shrunk into a corner of it (seen on bodies cut by the frame's edge) is not a person."""
+    """A pose whose flag is up, whose landmarks span a body-sized part of their square (a landmark set
+    shrunk into a corner of it, seen on bodies cut by the frame's edge, is not a person), and whose own
+    square is turned at most ``max_roll`` from upright (one read head-down, the face at the hips, would
+    give the next frame an upside-down square, and every reading after it is upside down too)."""
     box = landmark_box(found)
+    roll = bp.roi_from_landmarks(found).rotation
     return bool(found.presence >= config.min_presence
-                and max(box[2] - box[0], box[3] - box[1]) >= config.min_extent * found.roi.size)
+                and max(box[2] - box[0], box[3] - box[1]) >= config.min_extent * found.roi.size
+                and abs(np.angle(np.exp(1j * roll))) <= config.max_roll)
 
 
 def same_box(box_a: np.ndarray, box_b: np.ndarray, config: TrackerConfig) -> bool:

@@ -79,6 +79,10 @@ class TrackerConfig:
     a track: figures in the suite's posters read as people with a sure flag and were followed for seconds
     (the smallest person the figures count is 80 px of 360, 0.22)."""
     min_extent: float = 0.3
+    max_roll: float = 1.5707963267948966
+    """Largest turn from upright (radians; 90°) of the square a pose's own landmarks give for the pose to
+    count: the suite's people, and the footage's, stand, walk and sit; readings past it took the feet for
+    the head."""
     """Smallest long side of a pose's landmark box, as a share of its square's side, for it to count."""
     min_run: int = 3
     """Frames of a track outside a run of this many consecutive ones are dropped."""
