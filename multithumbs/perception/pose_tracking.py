@@ -80,11 +80,11 @@ class TrackerConfig:
     followed for seconds. ``vtest.avi``'s far pedestrians are 0.10 of its frame at the 10th percentile, and
     the smallest person the suite's figures count is 0.22 (80 px of 360)."""
     min_extent: float = 0.3
+    """Smallest long side of a pose's landmark box, as a share of its square's side, for it to count."""
     max_roll: float = 1.5707963267948966
     """Largest turn from upright (radians; 90°) of the square a pose's own landmarks give for the pose to
     count: the suite's people, and the footage's, stand, walk and sit; readings past it took the feet for
     the head."""
-    """Smallest long side of a pose's landmark box, as a share of its square's side, for it to count."""
     min_run: int = 3
     """Frames of a track outside a run of this many consecutive ones are dropped."""
     min_frames: int = 6
