@@ -32,9 +32,9 @@ PINS: Mapping[str, str] = {
 }
 """Environment variable -> the value that selects each library's AVX2 kernels (or turns its AVX-512 ones off)."""
 
+_SKX_FLAGS = frozenset({"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"})
 OPENCV_TARGETS: tuple[tuple[str, frozenset[str]], ...] = (
-    ("AVX512-SKX", frozenset({"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"})),
-    ("AVX512-CLX", frozenset({"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl", "avx512_vnni"})))
+    ("AVX512-SKX", _SKX_FLAGS), ("AVX512-CLX", _SKX_FLAGS | {"avx512_vnni"}))
 """The AVX-512 targets OpenCV's wheels dispatch to (``cv2.getCPUFeaturesLine()``: ``... *AVX2 *AVX512-SKX
 *AVX512-CLX``; disabling one does not disable the other), each with the CPU flags it needs. OpenCV spells
 them with a hyphen: the underscored names it called "unknown" on every import, and disabled nothing."""

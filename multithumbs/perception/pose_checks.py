@@ -29,10 +29,10 @@ def plausible(found: bp.Landmarks, config: TrackerConfig) -> bool:
     square is turned at most ``max_roll`` from upright (one read head-down, the face at the hips, would
     give the next frame an upside-down square, and every reading after it is upside down too)."""
     box = landmark_box(found)
-    roll = bp.roi_from_landmarks(found).rotation
+    roll = bp.roi_from_landmarks(found).rotation  # already in [-pi, pi)
     return bool(found.presence >= config.min_presence
                 and max(box[2] - box[0], box[3] - box[1]) >= config.min_extent * found.roi.size
-                and abs(np.angle(np.exp(1j * roll))) <= config.max_roll)
+                and abs(roll) <= config.max_roll)
 
 
 def same_box(box_a: np.ndarray, box_b: np.ndarray, config: TrackerConfig) -> bool:
