@@ -14,7 +14,7 @@ this measures perception alone). Printed per scene and over the suite:
   same for a 4-person scene (s03) alone.
 
     .venv/bin/python benchmarks/cpu_perception.py [--scenes s01_two_people_20deg,...] [--runs 1]
-        [--no-fit] [--no-facing] [--json OUT]
+        [--no-fit] [--no-facing] [--no-ground] [--json OUT]
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def padded_landmark_boxes(boxes: np.ndarray, image_size: tuple[int, int]) -> np.
     return np.clip(padded, -0.5, [w - 0.5, h - 0.5, w - 0.5, h - 0.5])
 
 
-def score_scene(name: str, fit: bool = True, facing: bool = True) -> dict:
+def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool = True) -> dict:
     import torch
 
     from multithumbs.body.model import load_body_model
@@ -51,6 +51,7 @@ def score_scene(name: str, fit: bool = True, facing: bool = True) -> dict:
     from multithumbs.metrics.pose import mpjpe, pa_mpjpe
     from multithumbs.perception.blazepose_backend import BlazePoseConfig, poses_to_tracks
     from multithumbs.perception.blazepose_models import BlazePose
+    from multithumbs.perception.ground_motion import ground_flow
     from multithumbs.perception.joints import BLAZEPOSE_SMPL_JOINTS
     from multithumbs.perception.oracle import oracle_tracks
     from multithumbs.perception.pose_tracking import track_shot
@@ -87,7 +88,10 @@ def score_scene(name: str, fit: bool = True, facing: bool = True) -> dict:
         h, w = video.truth.world.image_size
         if fit:
             start = time.perf_counter()
-            tracks = poses_to_tracks(poses, true_tr.shot_index, a, K, (h, w), body, config.fit, config.facing)
+            floor_flow = (ground_flow(video.frames[a:b], poses.image, poses.boxes, poses.masks, poses.valid,
+                                      config.ground) if facing and ground else None)
+            tracks = poses_to_tracks(poses, true_tr.shot_index, a, K, (h, w), body, config.fit, config.facing,
+                                     floor_flow)
             seconds["fitting"] += time.perf_counter() - start
             pred_kp = tracks.keypoints2d
             with torch.no_grad():
@@ -141,10 +145,12 @@ def main() -> None:
     parser.add_argument("--no-fit", action="store_true", help="tracking and 2D only (no body fitting)")
     parser.add_argument("--no-facing", action="store_true",
                         help="keep BlazePose's readings as they are (no mirroring by the walk)")
+    parser.add_argument("--no-ground", action="store_true",
+                        help="read the walk in the camera frame (the camera's motion not taken out by the floor)")
     parser.add_argument("--json", default=None, help="write the per-scene results here")
     args = parser.parse_args()
     names = args.scenes.split(",") if args.scenes else [s.name for s in suite("standard")]
-    runs = [[score_scene(n, fit=not args.no_fit, facing=not args.no_facing) for n in names] for _ in range(args.runs)]
+    runs = [[score_scene(n, fit=not args.no_fit, facing=not args.no_facing, ground=not args.no_ground) for n in names] for _ in range(args.runs)]
     rows = runs[0]
     keys = ("recall", "precision", "switches", "pck", "mpjpe", "pa_mpjpe", "landmark_s_per_frame",
             "fit_s_per_frame")

@@ -10,7 +10,8 @@ The ``blazepose`` perception source (the default of ``multithumbs run``). For ea
    intrinsics, batched over the shot's people and frames;
 4. each track's readings are labelled front or back by where the fitted root walks and how slowly bodies
    turn; the frames taken for BlazePose's front/back confusion are mirrored and the shot is fitted
-   again (:mod:`.facing`).
+   again (:mod:`.facing`); the walk is read with the camera's own motion taken out, as the floor at each
+   person's feet shows it (:mod:`.ground_motion`).
 
 Masks come from BlazePose's segmentation. Appearance is described afterwards from the pixels, as for every
 source (:mod:`.appearance`). Frames where a person was not followed stay invalid.
@@ -29,6 +30,7 @@ from multithumbs.appearance import DESCRIPTOR_SIZE
 from multithumbs.perception.body_fit import BodyFitConfig, FittedBodies, fit_bodies
 from multithumbs.perception.facing import (HIP_LANDMARKS, FacingConfig, facing_flips, legs_seen, mirrored,
                                            root_velocity)
+from multithumbs.perception.ground_motion import GroundMotionConfig, ground_flow, static_velocity
 from multithumbs.perception.joints import blazepose33_to_smpl24
 from multithumbs.perception.pose_tracking import ShotPoses, TrackerConfig, track_shot
 from multithumbs.types import PersonTracks, Shots
@@ -45,6 +47,8 @@ class BlazePoseConfig:
     to σ = 20 cm (weight 1/σ²), not the 5 cm of :class:`BodyFitConfig`'s default."""
     facing: FacingConfig = field(default_factory=FacingConfig)
     """When a reading is taken for a back seen as a front and mirrored (PCK 0.841 -> see docs/RESULTS.md)."""
+    ground: GroundMotionConfig = field(default_factory=GroundMotionConfig)
+    """How the camera's own motion is read from the floor at each person's feet for the facing's walk."""
     num_threads: int = 2
     """Threads of each tflite interpreter."""
 
@@ -76,20 +80,27 @@ def _fit(image: np.ndarray, world: np.ndarray, valid: np.ndarray, K: np.ndarray,
     return keypoints, fit_bodies(keypoints, joints3d, valid, K, body, config)
 
 
-def mirror_flips(poses: ShotPoses, fitted: FittedBodies, config: FacingConfig) -> np.ndarray:
-    """``(P, T)`` bool: frames whose reading the walk and the turns take for a back seen as a front (step 4);
-    the motion is the first fit's roots over every valid frame."""
+def mirror_flips(poses: ShotPoses, fitted: FittedBodies, config: FacingConfig, K: np.ndarray | None = None,
+                 floor_flow: np.ndarray | None = None) -> np.ndarray:
+    """``(P, T)`` bool: frames whose reading the walk and the turns take for a back seen as a front (step 4).
+    The walk is the first fit's root motion over every valid frame, less the motion of a static point there
+    when the floor's shift ``floor_flow (P, T, 2)`` (:func:`.ground_motion.ground_flow`) and ``K`` are given."""
     if not config.enabled or not poses.valid.any():
         return np.zeros(poses.valid.shape, bool)
     linked = poses.valid & legs_seen(poses.image, config.min_hip_visibility, HIP_LANDMARKS)
     judged = legs_seen(poses.image, config.min_leg_visibility)
-    return facing_flips(poses.world, root_velocity(fitted.transl, poses.valid, config.window), linked, judged, config)
+    walk = root_velocity(fitted.transl, poses.valid, config.window)
+    if floor_flow is not None and K is not None:
+        walk = walk - static_velocity(floor_flow, fitted.transl, poses.valid, K, config.window)
+    return facing_flips(poses.world, walk, linked, judged, config)
 
 
 def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.ndarray, image_size: tuple[int, int],
                     body=None, config: BodyFitConfig | None = None,
-                    facing: FacingConfig = FacingConfig()) -> PersonTracks:
-    """One shot's :class:`PersonTracks` from the people BlazePose followed (module docstring, steps 2–4)."""
+                    facing: FacingConfig = FacingConfig(), floor_flow: np.ndarray | None = None) -> PersonTracks:
+    """One shot's :class:`PersonTracks` from the people BlazePose followed (module docstring, steps 2–4);
+    ``floor_flow (P, T, 2)``, when given, is the floor's shift at each person's feet
+    (:func:`.ground_motion.ground_flow`), which takes the camera's motion out of the walk."""
     p, t = poses.valid.shape
     h, w = image_size
     if body is None:
@@ -98,7 +109,7 @@ def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.n
         body = load_body_model()
     config = config or BlazePoseConfig().fit
     keypoints, fitted = _fit(poses.image, poses.world, poses.valid, K, body, config)
-    flips = mirror_flips(poses, fitted, facing)
+    flips = mirror_flips(poses, fitted, facing, K, floor_flow)
     if flips.any():
         image, world = mirrored(poses.image, poses.world, flips)
         keypoints, fitted = _fit(image, world, poses.valid, K, body, config)
@@ -151,7 +162,9 @@ def blazepose_tracks(frames: Iterable[np.ndarray], shots: Shots, K: np.ndarray, 
         calls["detector"] += poses.detector_calls
         calls["landmark"] += poses.landmark_calls
         start = time.perf_counter()
-        out.append(poses_to_tracks(poses, k, a, K, image_size, body, config.fit, config.facing))
+        floor_flow = (ground_flow(shot_frames, poses.image, poses.boxes, poses.masks, poses.valid, config.ground)
+                      if config.facing.enabled and config.ground.enabled else None)
+        out.append(poses_to_tracks(poses, k, a, K, image_size, body, config.fit, config.facing, floor_flow))
         seconds["fitting"] += time.perf_counter() - start
     return out, StageSeconds(seconds["landmarks"], seconds["fitting"], calls["detector"], calls["landmark"],
                              shots.num_frames)
