@@ -1,7 +1,7 @@
 """Packages that ``pip install -e .`` does not install, and the one-line error saying how to get them.
 
 scripts/setup.sh installs these with ``--no-deps``: each requires ``opencv-python`` (the GUI build), which
-would overwrite ``opencv-python-headless``'s ``cv2`` (/work/shared/DEPENDENCIES.md), so they cannot be
+would overwrite ``opencv-contrib-python-headless``'s ``cv2`` (/work/shared/DEPENDENCIES.md), so they cannot be
 ordinary dependencies in pyproject.toml. A command that needs one checks with :func:`require` before doing
 any work; :func:`missing_package_message` turns an import that fails later into the same line.
 """

@@ -16,7 +16,7 @@ n=0
 step() {  # step "what is being installed" command...
   local start=$SECONDS
   n=$((n + 1))
-  printf '[%d/9] %s ... ' "$n" "$1"
+  printf '[%d/10] %s ... ' "$n" "$1"
   shift
   # Machines whose pip.conf names find-links folders that do not exist get one warning per package from
   # pip; they say nothing about this install, so they are left out (every other message stays).
@@ -58,6 +58,12 @@ step "pip, upgraded" "${PIP[@]}" install --upgrade pip
 step "PyTorch 2.13.0, $MODE build" install_torch
 # setuptools boxes a generic note on every editable install (folders named like the package may shadow it
 # on imports; the project's layout is exactly that, on purpose): silenced by its message only.
+# OpenCV is the headless contrib build (HOG's people detector is a contrib module from OpenCV 5 on). A venv
+# made before it may hold the plain headless build, which writes the same cv2 folder: both go, and the next
+# step installs the contrib build whole.
+step "no plain opencv-python-headless beside the contrib build" \
+  bash -c '"$@" show opencv-python-headless >/dev/null 2>&1 || exit 0
+           "$@" uninstall -y opencv-python-headless opencv-contrib-python-headless' _ "${PIP[@]}"
 step "multithumbs in editable mode, with its dev tools (.[dev])" \
   env PYTHONWARNINGS="ignore:Editable installation" "${PIP[@]}" install -e ".[dev]"
 # scenedetect asks for opencv-python (GUI), which clobbers the headless cv2: install it alone.

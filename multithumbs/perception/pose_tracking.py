@@ -11,7 +11,9 @@ whenever someone was lost), so people who enter, or who come back after an occlu
    round after round, each time on its best detection: a landmark pass in its square on the real frame
    confirms it, it is greyed out in turn, and it becomes a recently lost track (same box, overlap ≥
    ``revive_iou``) or a new one. The detector was trained for one person per image; greying out the
-   people it has given is what lets it give the next (recall 0.64 -> see docs/RESULTS.md);
+   people it has given is what lets it give the next (recall 0.64 -> see docs/RESULTS.md). Then the
+   boxes OpenCV's HOG pedestrian detector sees where no one is followed each get a landmark pass too
+   (:mod:`.person_proposals`): it finds people by their outline, whom the face-anchored one misses;
 3. two tracks whose landmark boxes overlap by ``duplicate_iou`` or more, or one nearly inside the other,
    have drifted onto one person: the younger one is marked missed, last seen where it was before. A
    pose whose landmarks shrink into a corner of their square (bodies cut by the frame's edge) is not
@@ -45,6 +47,7 @@ import numpy as np
 
 from multithumbs.perception import blazepose as bp
 from multithumbs.perception.backfill import backfill
+from multithumbs.perception.person_proposals import hog_boxes, proposal_roi
 from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity, moved_square, plausible, same_person
 from multithumbs.perception.shot_assembly import ShotPoses, assemble, drop_short_runs, landmark_box, settle_frame
 from multithumbs.perception.track_appearance import clearly_better, updated_model
@@ -96,6 +99,19 @@ class TrackerConfig:
     tiles: int = 3
     """Square tiles across the frame's long side the detector also looks at when the whole frame gives
     nothing (below 2: whole frame only)."""
+    proposals: bool = True
+    """Also give a landmark pass to the people OpenCV's HOG pedestrian detector sees where no one is followed
+    (:mod:`.person_proposals`): the face-anchored detector misses people seen from behind or without a
+    readable face (suite recall 0.856 -> see docs/RESULTS.md, session 15)."""
+    proposal_min_weight: float = 0.5
+    """Smallest HOG SVM margin of a proposal (the suite's boxes score 0.25 to 2.4; people mostly above 0.5)."""
+    proposal_scales: tuple[float, ...] = (1.0, 0.5)
+    """Sizes of the frame HOG looks at: its 64x128 window finds people from 128 px tall at 1, 256 px at 0.5."""
+    proposal_side: float = 1.2
+    """Side of the landmark model's square for a bare proposal box, as a multiple of the box's height."""
+    proposal_zoom: float = 1.1
+    """Side of the crop around a proposal the face-anchored detector is asked again on, as a multiple of
+    the box's height (0: not asked; its alignment points give a better square when it answers)."""
     max_rejections: int = 2
     """Detections a frame may reject (no pose in the landmark pass, someone already followed) before the
     search stops."""
@@ -204,7 +220,8 @@ def _find_people(frame: np.ndarray, model, config: TrackerConfig, tracks: list[_
                  lost: list[_Track], t: int, new_track) -> tuple[int, int]:
     """Detection rounds on a copy of the frame where everyone already followed is greyed out: each round
     takes the detector's best detection, checks it with a landmark pass on the real frame, greys it out
-    too, and makes it a revived or a new track. Returns the detector and landmark calls made."""
+    too, and makes it a revived or a new track. Then the HOG proposals no one followed get a landmark pass
+    each (:mod:`.person_proposals`). Returns the detector and landmark calls made."""
     canvas = frame.copy()
     for tr in live:
         _paint_out(canvas, tr.last, config)
@@ -218,26 +235,43 @@ def _find_people(frame: np.ndarray, model, config: TrackerConfig, tracks: list[_
             break
         found = model.landmarks(frame, bp.roi_from_detection(detection))
         calls[1] += 1
-        box = landmark_box(found)
-        small = box[3] - box[1] < config.min_height * frame.shape[0]
-        if small or not plausible(found, config) or _claimed(detection, live) or any(same_person(found, tr.last, config)
-                                                                             for tr in live):
+        if _claimed(detection, live) or not _take(found, frame, config, tracks, live, lost, t, new_track):
             x0, y0, x1, y1 = np.round(detection.face_box).astype(int)
             canvas[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = 127
-            _paint_out(canvas, found, config)
-            continue
-        descriptor = describe(frame, found, config)
-        tr = _lost_track_for(box, descriptor, lost, config)
-        if tr is not None:
-            lost.remove(tr)
-        else:
-            tr = new_track()
-            tracks.append(tr)
-        tr.last, tr.frames[t], tr.missed = found, found, 0
-        tr.descriptors[t] = descriptor
-        live.append(tr)
         _paint_out(canvas, found, config)
+    if config.proposals and len(live) < config.max_people:
+        for box in hog_boxes(frame, config.proposal_scales, config.proposal_min_weight):
+            if len(live) >= config.max_people:
+                break
+            if any(_inside(0.5 * (box[:2] + box[2:4]), tr.box) for tr in live):
+                continue
+            roi, used = proposal_roi(frame, box, model, config.proposal_side, config.proposal_zoom,
+                                     config.min_detection_score)
+            calls[0] += used
+            calls[1] += 1
+            _take(model.landmarks(frame, roi), frame, config, tracks, live, lost, t, new_track)
     return calls[0], calls[1]
+
+
+def _take(found: bp.Landmarks, frame: np.ndarray, config: TrackerConfig, tracks: list[_Track], live: list[_Track],
+          lost: list[_Track], t: int, new_track) -> bool:
+    """Make a landmark pass a revived or a new live track, unless it is too small, not a plausible pose,
+    or someone already followed. Returns whether it was taken."""
+    box = landmark_box(found)
+    if (box[3] - box[1] < config.min_height * frame.shape[0] or not plausible(found, config)
+            or any(same_person(found, tr.last, config) for tr in live)):
+        return False
+    descriptor = describe(frame, found, config)
+    tr = _lost_track_for(box, descriptor, lost, config)
+    if tr is not None:
+        lost.remove(tr)
+    else:
+        tr = new_track()
+        tracks.append(tr)
+    tr.last, tr.frames[t], tr.missed = found, found, 0
+    tr.descriptors[t] = descriptor
+    live.append(tr)
+    return True
 
 
 def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = TrackerConfig(),
