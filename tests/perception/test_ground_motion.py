@@ -4,7 +4,6 @@ the backend's facing with a standing person seen from a dolly."""
 
 import cv2
 import numpy as np
-import torch
 
 from multithumbs.perception.facing import FacingConfig
 from multithumbs.perception.ground_motion import GroundMotionConfig, ground_flow, static_velocity
