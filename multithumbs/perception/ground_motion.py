@@ -2,9 +2,9 @@
 
 The facing labelling (:mod:`.facing`) reads a walk from the fitted root's motion in the camera frame. When
 the camera moves, that motion is the walk minus the camera's. On the suite's dolly shots (0.3 m/s sideways)
-a person standing still seems to walk at 12 mm a frame, above the labelling's ``min_speed``, so the fit's
-small wanderings in depth were read as a walk towards or away from the camera, and readings that were
-right were mirrored (s11's standing person for all 21 of their frames, ``docs/RESULTS.md``).
+a person standing still seems to walk at up to 12 mm a frame, above the labelling's ``min_speed``, so the
+fit's small wanderings in depth were read as a walk towards or away from the camera, and readings that
+were right were mirrored (a person nearly standing in s11, for all 21 of their frames, ``docs/RESULTS.md``).
 
 The floor next to a person's feet is static and at the feet's depth, so its image motion is the camera's
 motion seen at the person's distance. :func:`ground_flow` tracks corners of the floor in a band beside the

@@ -1,7 +1,7 @@
 """Where else to look for people: OpenCV's HOG pedestrian detector, for those the face-anchored one misses.
 
 BlazePose's detector finds a person from their face. People seen from behind, side-on, or without a
-readable face (the suite's mannequins: a wholly seen man in s07 scores nothing above 0.1 at any scale) are
+readable face (the suite's mannequins: a person wholly seen in s07 scores nothing above 0.1 at any scale) are
 never given, and recall stops at 0.86 (``docs/RESULTS.md``). The HOG people detector (Dalal and Triggs,
 OpenCV's default linear SVM on 64x128 windows) looks at the silhouette instead. Its boxes are proposals:
 
@@ -11,8 +11,8 @@ OpenCV's default linear SVM on 64x128 windows) looks at the silhouette instead. 
   asked again on a square crop around the box, where the person fills its view; when it finds someone whose
   mid-hip lies within half the box's height of its centre, the square comes from its alignment points (the path every detection takes).
   Otherwise the square is the box's own: centred on it, upright, ``side`` times its height. A track seeded
-  from a bare box read a man's first frames badly and kept reading him badly (s01), which the second look
-  avoids.
+  from a bare box read a person's first frames badly and kept reading them badly (s01), which the second
+  look avoids.
 
 The tracker (:mod:`.pose_tracking`) takes a proposal only after the landmark pass in that square confirms a
 person with the checks every detection passes. OpenCV keeps the HOG detector in ``objdetect`` up to 4.x and
