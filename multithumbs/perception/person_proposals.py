@@ -44,13 +44,18 @@ def _people_detector():
 def hog_boxes(frame: np.ndarray, scales: tuple[float, ...] = (1.0, 0.5), min_weight: float = 0.5) -> np.ndarray:
     """``(N, 5)`` x0, y0, x1, y1 (frame pixels) and SVM margin of the people HOG sees in an ``(H, W, 3)``
     frame looked at in each of ``scales``, margins at least ``min_weight``, best first (ties by position,
-    so the order never depends on OpenCV's threads)."""
+    so the order never depends on OpenCV's threads). Scales at which the frame is smaller than HOG's 64x128
+    window are skipped."""
     import cv2
 
     hog = _people_detector()
+    window_w, window_h = hog.winSize
     found = []
     for scale in scales:
-        image = frame if scale == 1 else cv2.resize(frame, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+        h, w = (int(round(n * scale)) for n in frame.shape[:2])
+        if w < window_w or h < window_h:
+            continue  # OpenCV's detectMultiScale crashes on an image smaller than its window
+        image = frame if scale == 1 else cv2.resize(frame, (w, h), interpolation=cv2.INTER_AREA)
         rects, weights = hog.detectMultiScale(image, winStride=(8, 8), padding=(8, 8), scale=1.05)
         for (x, y, w, h), weight in zip(np.asarray(rects, np.float64).reshape(-1, 4), np.ravel(weights)):
             if weight >= min_weight:

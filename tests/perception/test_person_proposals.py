@@ -32,6 +32,8 @@ def test_hog_finds_the_rendered_person_and_its_order_is_fixed(frame):
     np.testing.assert_array_equal(hog_boxes(frame), boxes)
     assert len(hog_boxes(frame, min_weight=99.0)) == 0
     assert len(hog_boxes(np.full_like(frame, 90))) == 0   # nothing on a plain wall
+    for size in ((120, 200), (100, 60), (10, 10)):   # smaller than HOG's window at some or all scales
+        assert hog_boxes(np.full(size + (3,), 90, np.uint8)).shape == (0, 5)
 
 
 def test_square_crop_is_black_beyond_the_frame():
