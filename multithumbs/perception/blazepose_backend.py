@@ -58,9 +58,9 @@ class StageSeconds:
     """Where the backend's time went, summed over shots (wall seconds)."""
 
     landmarks: float
-    """Detector and landmark models with their pre- and post-processing (tracking included)."""
+    """Detector and landmark models with their pre- and post-processing (tracking and HOG proposals included)."""
     fitting: float
-    """Body fitting."""
+    """Body fitting, with the floor's shift at the feet and the facing labelling."""
     detector_calls: int
     """Detector invocations."""
     landmark_calls: int
