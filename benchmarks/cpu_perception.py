@@ -25,6 +25,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "2")
 
 import argparse
+import dataclasses
 import json
 import statistics
 import time
@@ -49,9 +50,8 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
     from multithumbs.metrics.identity import count_id_switches, projected_boxes
     from multithumbs.metrics.perception import detection_counts, eligible_people, match_people, pck
     from multithumbs.metrics.pose import mpjpe, pa_mpjpe
-    from multithumbs.perception.blazepose_backend import BlazePoseConfig, poses_to_tracks
+    from multithumbs.perception.blazepose_backend import BlazePoseConfig, poses_to_tracks, shot_floor_flow
     from multithumbs.perception.blazepose_models import BlazePose
-    from multithumbs.perception.ground_motion import ground_flow
     from multithumbs.perception.joints import BLAZEPOSE_SMPL_JOINTS
     from multithumbs.perception.oracle import oracle_tracks
     from multithumbs.perception.pose_tracking import track_shot
@@ -66,9 +66,9 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
     model = BlazePose(num_threads=2)
     config = BlazePoseConfig()
     if not facing:
-        import dataclasses
-
         config = dataclasses.replace(config, facing=dataclasses.replace(config.facing, enabled=False))
+    if not ground:
+        config = dataclasses.replace(config, ground=dataclasses.replace(config.ground, enabled=False))
     tallies = np.zeros(4, np.int64)
     correct = counted = 0
     errors, pa_errors = [], []
@@ -88,8 +88,7 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
         h, w = video.truth.world.image_size
         if fit:
             start = time.perf_counter()
-            floor_flow = (ground_flow(video.frames[a:b], poses.image, poses.boxes, poses.masks, poses.valid,
-                                      config.ground) if facing and ground else None)
+            floor_flow = shot_floor_flow(video.frames[a:b], poses, config)
             tracks = poses_to_tracks(poses, true_tr.shot_index, a, K, (h, w), body, config.fit, config.facing,
                                      floor_flow)
             seconds["fitting"] += time.perf_counter() - start

@@ -95,6 +95,14 @@ def mirror_flips(poses: ShotPoses, fitted: FittedBodies, config: FacingConfig, K
     return facing_flips(poses.world, walk, linked, judged, config)
 
 
+def shot_floor_flow(frames, poses: ShotPoses, config: BlazePoseConfig) -> np.ndarray | None:
+    """The floor's shift at each person's feet in a shot's frames (:func:`.ground_motion.ground_flow`), or
+    None when the facing labelling or the floor reading is off."""
+    if not (config.facing.enabled and config.ground.enabled):
+        return None
+    return ground_flow(frames, poses.image, poses.boxes, poses.masks, poses.valid, config.ground)
+
+
 def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.ndarray, image_size: tuple[int, int],
                     body=None, config: BodyFitConfig | None = None,
                     facing: FacingConfig = FacingConfig(), floor_flow: np.ndarray | None = None) -> PersonTracks:
@@ -162,8 +170,7 @@ def blazepose_tracks(frames: Iterable[np.ndarray], shots: Shots, K: np.ndarray, 
         calls["detector"] += poses.detector_calls
         calls["landmark"] += poses.landmark_calls
         start = time.perf_counter()
-        floor_flow = (ground_flow(shot_frames, poses.image, poses.boxes, poses.masks, poses.valid, config.ground)
-                      if config.facing.enabled and config.ground.enabled else None)
+        floor_flow = shot_floor_flow(shot_frames, poses, config)
         out.append(poses_to_tracks(poses, k, a, K, image_size, body, config.fit, config.facing, floor_flow))
         seconds["fitting"] += time.perf_counter() - start
     return out, StageSeconds(seconds["landmarks"], seconds["fitting"], calls["detector"], calls["landmark"],
@@ -181,5 +188,5 @@ def run_blazepose(video: str | Path, shots: Shots, K: np.ndarray, body=None,
     return tracks
 
 
-__all__ = ["BlazePoseConfig", "StageSeconds", "poses_to_tracks", "blazepose_tracks",
+__all__ = ["BlazePoseConfig", "StageSeconds", "shot_floor_flow", "poses_to_tracks", "blazepose_tracks",
            "run_blazepose"]

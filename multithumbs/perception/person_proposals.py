@@ -57,9 +57,9 @@ def hog_boxes(frame: np.ndarray, scales: tuple[float, ...] = (1.0, 0.5), min_wei
             continue  # OpenCV's detectMultiScale crashes on an image smaller than its window
         image = frame if scale == 1 else cv2.resize(frame, (w, h), interpolation=cv2.INTER_AREA)
         rects, weights = hog.detectMultiScale(image, winStride=(8, 8), padding=(8, 8), scale=1.05)
-        for (x, y, w, h), weight in zip(np.asarray(rects, np.float64).reshape(-1, 4), np.ravel(weights)):
+        for (x, y, box_w, box_h), weight in zip(np.asarray(rects, np.float64).reshape(-1, 4), np.ravel(weights)):
             if weight >= min_weight:
-                found.append([x / scale, y / scale, (x + w) / scale, (y + h) / scale, float(weight)])
+                found.append([x / scale, y / scale, (x + box_w) / scale, (y + box_h) / scale, float(weight)])
     boxes = np.asarray(found, np.float64).reshape(-1, 5)
     return boxes[np.lexsort((boxes[:, 1], boxes[:, 0], -boxes[:, 4]))]
 
@@ -88,15 +88,15 @@ def proposal_roi(frame: np.ndarray, box: np.ndarray, model, side: float = 1.2, z
     """
     box = np.asarray(box, np.float64)
     centre, height = 0.5 * (box[:2] + box[2:4]), float(box[3] - box[1])
-    if zoom > 0:
-        crop, corner = square_crop(frame, centre, max(int(round(zoom * height)), 1))
-        found = model.detect(crop, min_score=min_score)
-        if found:
-            hip, size_point = found[0].keypoints[0] + corner, found[0].keypoints[1] + corner  # the best only
-            if np.all(np.abs(hip - centre) <= height / 2):
-                return bp.roi_from_points(hip, size_point), 1
-        return bp.Roi(centre, side * height, 0.0), 1
-    return bp.Roi(centre, side * height, 0.0), 0
+    if zoom <= 0:
+        return bp.Roi(centre, side * height, 0.0), 0
+    crop, corner = square_crop(frame, centre, max(int(round(zoom * height)), 1))
+    found = model.detect(crop, min_score=min_score)
+    if found:  # the best detection only
+        hip, size_point = found[0].keypoints[0] + corner, found[0].keypoints[1] + corner
+        if np.all(np.abs(hip - centre) <= height / 2):
+            return bp.roi_from_points(hip, size_point), 1
+    return bp.Roi(centre, side * height, 0.0), 1
 
 
 __all__ = ["hog_boxes", "square_crop", "proposal_roi"]
