@@ -3,8 +3,8 @@
 Every scene is rendered; the backend sees only its frames (true cuts and true intrinsics are given, so
 this measures perception alone). Printed per scene and over the suite:
 
-* detection recall and precision (IoU ≥ 0.5 of amodal boxes; recall over people ≥ 80 px tall with at
-  least half their silhouette seen; ``multithumbs.metrics.perception``);
+* detection recall and precision (IoU ≥ 0.5 of the boxes of the meshes' silhouettes in the frame; recall
+  over people ≥ 80 px tall with at least half their silhouette seen; ``multithumbs.metrics.perception``);
 * 2D PCK@0.1 of the box size on the joints the truth marks visible;
 * identity switches within shots: CLEAR-MOT's count (``multithumbs.metrics.identity.count_id_switches``)
   over the per-frame matching of the recall figure (each fragment of a person lost and found again under a
@@ -47,8 +47,8 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
     import torch
 
     from multithumbs.body.model import load_body_model
-    from multithumbs.metrics.identity import count_id_switches, projected_boxes
-    from multithumbs.metrics.perception import detection_counts, eligible_people, match_people, pck
+    from multithumbs.metrics.identity import count_id_switches
+    from multithumbs.metrics.perception import detection_counts, eligible_people, match_people, pck, silhouette_boxes
     from multithumbs.metrics.pose import mpjpe, pa_mpjpe
     from multithumbs.perception.blazepose_backend import BlazePoseConfig, poses_to_tracks, shot_floor_flow
     from multithumbs.perception.blazepose_models import BlazePose
@@ -95,8 +95,8 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
             pred_kp = tracks.keypoints2d
             with torch.no_grad():
                 fitted = body.forward(tracks.global_orient, tracks.body_pose, tracks.betas, tracks.transl)
-            # The fitted mesh projected, the same kind of box as the truth's (and as the IDs metric uses).
-            pred_boxes, _ = projected_boxes(fitted.vertices.double().numpy(), K, (h, w))
+            # The fitted mesh's silhouette in the frame, the same kind of box as the truth's.
+            pred_boxes, _ = silhouette_boxes(fitted.vertices.double().numpy(), body.faces, K, (h, w))
         else:
             from multithumbs.perception.joints import blazepose33_to_smpl24
 

@@ -5,12 +5,15 @@ people of that shot (:func:`multithumbs.perception.oracle.oracle_tracks` gives t
 ground-truth data), frame by frame, before any of the method runs:
 
 * **matching**: in every frame, predicted and true people are paired one to one by the Hungarian
-  algorithm on the IoU of their boxes, a pair needing IoU ≥ 0.5 (the PASCAL/COCO criterion). True boxes
-  are the true mesh projected and clipped to the image (amodal, like BlazePose's landmark boxes, which
-  cover occluded limbs too);
+  algorithm on the IoU of their boxes, a pair needing IoU ≥ 0.5 (the PASCAL/COCO criterion). A box is
+  that of the mesh's silhouette inside the frame (:func:`silhouette_boxes`): amodal to other people, like
+  BlazePose's landmark boxes, which cover occluded limbs too, but cut at the frame's edge the way KITTI
+  boxes a truncated object, by the part of it that is in the image. (The mesh's projected box clamped to
+  the image would also span the sideways reach of legs below the frame, which no image shows);
 * **recall** over *eligible* true people (at least ``min_height`` pixels tall in the image, and at
-  least half of their silhouette seen: not beyond the frame's edge, not behind someone else), **precision** over all predictions, where a prediction
-  paired with a true person who is there but not eligible counts neither way;
+  least half of their silhouette seen: not beyond the frame's edge, not behind someone else),
+  **precision** over all predictions, where a prediction paired with a true person who is there but not
+  eligible counts neither way;
 * **PCK@α**: the share of a paired person's joints within ``α × max(box width, height)`` of the truth,
   over the joints the truth marks visible and the backend reports (confidence > 0);
 * **MPJPE / PA-MPJPE** of the paired people's 24 SMPL joints in the camera frame, pelvis-aligned (the
@@ -25,7 +28,7 @@ import cv2
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from multithumbs.metrics.identity import box_iou, projected_boxes
+from multithumbs.metrics.identity import box_iou
 
 MIN_IOU = 0.5
 
@@ -55,33 +58,62 @@ def match_people(pred_boxes: np.ndarray, pred_valid: np.ndarray, true_boxes: np.
     return out
 
 
-def silhouette_area(vertices_cam: np.ndarray, faces: np.ndarray, K: np.ndarray, image_size: tuple[int, int],
-                    margin: float = 1.0) -> np.ndarray:
-    """Pixels the mesh would cover if nothing hid it, counted on a canvas ``margin`` image sizes wider
-    on every side than the image (so that parts beyond the frame count): ``(..., V, 3)`` to ``(...)``."""
+def _silhouettes(vertices_cam: np.ndarray, faces: np.ndarray, K: np.ndarray, image_size: tuple[int, int],
+                 margin: float):
+    """Yield ``(index, canvas, (pad_x, pad_y))`` per mesh of ``(..., V, 3)``: its silhouette filled on a
+    canvas ``margin`` image sizes wider on every side than the image. Meshes with a point at or behind
+    the camera are skipped."""
     h, w = image_size
-    pad = np.array([margin * w, margin * h])
-    size = (int(round(h + 2 * pad[1])), int(round(w + 2 * pad[0])))
+    pad = np.round(np.array([margin * w, margin * h])).astype(int)
+    size = (h + 2 * pad[1], w + 2 * pad[0])
     flat = vertices_cam.reshape(-1, *vertices_cam.shape[-2:])
-    out = np.zeros(len(flat))
     for i, points in enumerate(flat):
         if not np.all(points[:, 2] > 1e-6):
             continue
         uv = points[:, :2] / points[:, 2:] * K[[0, 1], [0, 1]] + K[[0, 1], 2] + pad
         canvas = np.zeros(size, np.uint8)
         cv2.fillPoly(canvas, np.round(uv[faces]).astype(np.int32), 1)
+        yield i, canvas, pad
+
+
+def silhouette_area(vertices_cam: np.ndarray, faces: np.ndarray, K: np.ndarray, image_size: tuple[int, int],
+                    margin: float = 1.0) -> np.ndarray:
+    """Pixels the mesh would cover if nothing hid it, counted on a canvas ``margin`` image sizes wider
+    on every side than the image (so that parts beyond the frame count): ``(..., V, 3)`` to ``(...)``."""
+    out = np.zeros(int(np.prod(vertices_cam.shape[:-2])))
+    for i, canvas, _ in _silhouettes(vertices_cam, faces, K, image_size, margin):
         out[i] = canvas.sum()
     return out.reshape(vertices_cam.shape[:-2])
+
+
+def silhouette_boxes(vertices_cam: np.ndarray, faces: np.ndarray, K: np.ndarray,
+                     image_size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Boxes of the meshes' silhouettes inside the frame, nothing else hiding them: ``(..., V, 3)`` to
+    ``boxes (..., 4)`` ``x0, y0, x1, y1`` (the outer edges of the pixels covered; the image spans
+    ``[-0.5, W - 0.5] x [-0.5, H - 0.5]``) and ``present (...)``, some pixel in the image covered.
+
+    A body cut by the frame's edge is boxed by the part of it in the image, not by the clamped box of all
+    of it: a stride below the frame does not widen its box."""
+    h, w = image_size
+    shape = vertices_cam.shape[:-2]
+    boxes = np.zeros((int(np.prod(shape)), 4))
+    present = np.zeros(len(boxes), bool)
+    for i, canvas, _ in _silhouettes(vertices_cam, faces, K, image_size, 0.0):
+        rows, cols = np.flatnonzero(canvas.any(axis=1)), np.flatnonzero(canvas.any(axis=0))
+        if rows.size:
+            boxes[i] = cols[0] - 0.5, rows[0] - 0.5, cols[-1] + 0.5, rows[-1] + 0.5
+            present[i] = True
+    return boxes.reshape(*shape, 4), present.reshape(shape)
 
 
 def eligible_people(true_vertices_cam: np.ndarray, faces: np.ndarray, K: np.ndarray, image_size: tuple[int, int],
                     visible_pixels: np.ndarray, present: np.ndarray, min_height: float = 80.0,
                     min_visible: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
-    """True boxes ``(P, T, 4)`` (mesh projected, clipped) and the ``(P, T)`` people detection must find:
+    """True boxes ``(P, T, 4)`` (:func:`silhouette_boxes`) and the ``(P, T)`` people detection must find:
     present, at least ``min_height`` px tall in the image, and with at least ``min_visible`` of their
     silhouette seen (``visible_pixels (P, T)``, the truth's own masks, over :func:`silhouette_area`: the
     frame's edge and other people both hide it)."""
-    boxes, in_image = projected_boxes(true_vertices_cam, K, image_size)
+    boxes, in_image = silhouette_boxes(true_vertices_cam, faces, K, image_size)
     area = silhouette_area(true_vertices_cam, faces, K, image_size)
     seen = np.where(area > 0, visible_pixels / np.where(area > 0, area, 1), 0.0)
     eligible = present & in_image & (boxes[..., 3] - boxes[..., 1] >= min_height) & (seen >= min_visible)
@@ -128,4 +160,5 @@ def pck(pred_uv: np.ndarray, true_uv: np.ndarray, joints: np.ndarray, box_size: 
     return int(correct.sum()), int(joints.sum())
 
 
-__all__ = ["match_people", "silhouette_area", "eligible_people", "DetectionCounts", "detection_counts", "pck", "MIN_IOU"]
+__all__ = ["match_people", "silhouette_area", "silhouette_boxes", "eligible_people", "DetectionCounts",
+           "detection_counts", "pck", "MIN_IOU"]
