@@ -6,7 +6,9 @@ are placed in the cut's shared space:
 1. scale: the space is brought to the meshes' metric scale (:mod:`multithumbs.method.scale`);
 2. stage 1: each root starts at the scene point under its 2D root keypoint;
 3. stage 2: roots (pelvis position Γ, orientation Φ) are refined under the 2D reprojection loss;
-4. stage 3: roots and both boundary cameras are refined under 2D + silhouette + depth losses.
+4. stage 3: roots and both boundary cameras are refined under 2D + silhouette + depth losses;
+5. a root whose camera-frame depth has left the estimator's by more than ``max_depth_departure`` is put back
+   where the estimator saw it: the scene points that moved it were not on that person.
 
 Before the stages, with camera refinement on, the second boundary camera is registered to the first by
 the two frames' static scenes (:mod:`multithumbs.method.views`; below).
@@ -364,9 +366,24 @@ def _align_boundary(people: BoundaryPeople, space: SharedSpace, config: AlignCon
     else:
         losses += problem.run(state, config.iterations[1] + config.iterations[2], stage=3)
     R, t, orient, pelvis = problem.export(state)
+    _put_back_departed(people, R, t, orient, pelvis, config.max_depth_departure)
     common["point_map"] = problem.moved_point_maps(R, t)
     return AlignedBoundary(R=R, t=t, orient=orient, pelvis=pelvis, losses=np.asarray(losses),
                            method="three_stage" if config.staged else "joint", **common)
+
+
+def _put_back_departed(people: BoundaryPeople, R: np.ndarray, t: np.ndarray, orient: np.ndarray, pelvis: np.ndarray,
+                       max_departure: float) -> None:
+    """Put back, in place, the aligned roots (world ``orient, pelvis (2, P, 3)``) whose camera-frame depth
+    departs from the estimator's by more than ``max_departure`` of it: where the estimator saw them,
+    through the refined cameras ``R, t``."""
+    depth = (np.einsum("kij,kpj->kpi", R, pelvis) + t[:, None])[..., 2]  # (2, P)
+    reference = people.pelvis_cam[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        departed = people.present & (reference > 0) & (np.abs(depth / reference - 1) > max_departure)
+    if departed.any():  # inf: never
+        back_orient, back_pelvis = _camera_frame_roots(people, R, t)
+        orient[departed], pelvis[departed] = back_orient[departed], back_pelvis[departed]
 
 
 def _stage1_roots(people: BoundaryPeople, maps: np.ndarray, valid: np.ndarray, fallback: np.ndarray,

@@ -67,6 +67,14 @@ class AlignConfig:
         people_unmatched_cost: cost of leaving a person unmatched there (a matched pair costs its
             reprojection error in units of 5 % of the person's size, its orientation's disagreement in units
             of 10 degrees and its weighted appearance dissimilarity).
+        max_depth_departure: largest departure of an aligned root's camera-frame depth from the
+            estimator's, as a share of the estimator's. Beyond it, the scene points that moved the root
+            were not on that person (pixel-derived point maps between the legs, or at a mask's edge, hold
+            the wall behind or someone in front), and the root is put back where the estimator saw it,
+            through the refined camera. Without this, a person moved 1.4 m nearer was carried along their
+            whole shot and lost their identity at the cut before it (docs/RESULTS.md, session 16). 0.3 is
+            2.6 standard deviations of a 4DHumans-class per-track depth error (10 %, the simulated
+            perception's), so a right alignment is rarely undone. ``inf``: never.
         w_camera_prior: weight of ``‖ω‖² + ‖C − C₀‖²`` (rad², m²) keeping stage 3's cameras near their
             registered poses: with points that follow their cameras, the people's losses leave a gauge
             (camera, its points and its people moving together) that this fixes.
@@ -98,6 +106,7 @@ class AlignConfig:
     people_agreement_deg: float = 15.0
     people_w_appearance: float = 2.0
     people_unmatched_cost: float = 2.5
+    max_depth_departure: float = 0.3
 
 
 @dataclass(frozen=True)

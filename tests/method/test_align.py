@@ -216,3 +216,28 @@ def test_the_optimised_objective_is_the_documented_one(tiny, body):
                 grad_ours = torch.autograd.grad(ours, roots)[0]
                 grad_reference = torch.autograd.grad(reference, roots)[0]
                 torch.testing.assert_close(grad_ours, grad_reference, atol=1e-12, rtol=1e-8)
+
+
+
+def test_a_root_moved_far_from_the_estimators_depth_is_put_back(tiny, body):
+    from multithumbs.method.align import _camera_frame_roots, _put_back_departed
+    people = boundary_people(tiny.tracks[0], tiny.tracks[1], body)
+    space = tiny.spaces[0]
+    R, t = space.R.astype(np.float64), space.t.astype(np.float64)
+    orient, pelvis = _camera_frame_roots(people, R, t)
+    # Person 0 of side 0 pulled to 60 % of their depth along their ray (a wall of wrong points in front of
+    # them), person 0 of side 1 to 80 %, and turned: only the first departs by more than 30 %.
+    pulled = people.pelvis_cam.copy()
+    pulled[0, 0] *= 0.6
+    pulled[1, 0] *= 0.8
+    orient[:, 0] += 0.2
+    pelvis = np.einsum("kji,kpj->kpi", R, pulled - t[:, None])
+    kept_orient, kept_pelvis = orient.copy(), pelvis.copy()
+    _put_back_departed(people, R, t, orient, pelvis, float("inf"))
+    np.testing.assert_array_equal(pelvis, kept_pelvis)
+    _put_back_departed(people, R, t, orient, pelvis, AlignConfig().max_depth_departure)
+    np.testing.assert_allclose(R[0] @ pelvis[0, 0] + t[0], people.pelvis_cam[0, 0], atol=1e-9)
+    np.testing.assert_allclose(orient[0, 0], _camera_frame_roots(people, R, t)[0][0, 0], atol=1e-9)
+    np.testing.assert_array_equal(pelvis[1], kept_pelvis[1])
+    np.testing.assert_array_equal(orient[1], kept_orient[1])
+    np.testing.assert_array_equal(pelvis[0, 1:], kept_pelvis[0, 1:])
