@@ -22,7 +22,8 @@ whenever someone was lost), so people who enter, or who come back after an occlu
    goes to the person most sure of it, at probability ≥ 0.5 (:mod:`.shot_assembly`);
 5. once the shot is read, each run of each track is followed back from where it was found
    (:mod:`.backfill`): people the face-anchored detector found late are carried back to where the
-   landmark model first sees them.
+   landmark model first sees them; then a track that starts a few frames after another ends, where
+   that one was heading, continues it (:mod:`.track_stitch`).
 
 Each track also keeps a model of its appearance (:mod:`.track_appearance`), learnt in frames where it
 overlaps nobody: a reading unlike it is someone else's and is dropped (step 1), the track whose model fits
@@ -52,6 +53,7 @@ from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity,
 from multithumbs.perception.shot_assembly import ShotPoses, assemble, drop_short_runs, landmark_box, settle_frame
 from multithumbs.perception.track_appearance import clearly_better, updated_model
 from multithumbs.perception.track_split import merged_back, moved, split
+from multithumbs.perception.track_stitch import stitch_fragments
 
 
 @dataclass(frozen=True)
@@ -88,6 +90,12 @@ class TrackerConfig:
     """Largest turn from upright (radians; 90°) of the square a pose's own landmarks give for the pose to
     count: the suite's people, and the footage's, stand, walk and sit; readings past it took the feet for
     the head."""
+    stitch_gap: int = 8
+    """Most frames between the end of one track and the start of another for the second to continue the
+    first once the shot is read (:mod:`.track_stitch`; -1: never)."""
+    stitch_iou: float = 0.3
+    """Overlap of the later track's first box with the earlier one's last box, moved on at its last
+    velocity, for the two to be one person."""
     min_run: int = 3
     """Frames of a track outside a run of this many consecutive ones are dropped."""
     min_frames: int = 6
@@ -337,6 +345,7 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
         if progress:
             progress(t + 1, None)
     landmark_calls += backfill(tracks, frames, model, config)
+    tracks = stitch_fragments(tracks, config)
     for tr in tracks:
         drop_short_runs(tr, config.min_run)
     return assemble([tr for tr in tracks if len(tr.frames) >= config.min_frames], t + 1, image_size, config,
