@@ -92,7 +92,7 @@ class TrackerConfig:
     the head."""
     stitch_gap: int = 8
     """Most frames between the end of one track and the start of another for the second to continue the
-    first once the shot is read (:mod:`.track_stitch`; -1: never)."""
+    first once the shot is read (:mod:`.track_stitch`; 0: never)."""
     stitch_iou: float = 0.3
     """Overlap of the later track's first box with the earlier one's last box, moved on at its last
     velocity, for the two to be one person."""

@@ -69,9 +69,9 @@ def _join(tracks: list[_Track], config: TrackerConfig) -> tuple[_Track, _Track] 
 
 def stitch_fragments(tracks: list[_Track], config: TrackerConfig) -> list[_Track]:
     """``tracks`` with each later fragment of one person merged into the earlier one (module docstring);
-    tracks without frames are left out. ``config.stitch_gap < 0`` turns it off."""
+    tracks without frames are left out. ``config.stitch_gap`` 0 turns it off."""
     tracks = [tr for tr in tracks if tr.frames]
-    if config.stitch_gap < 0:
+    if config.stitch_gap < 1:
         return tracks
     while (pair := _join(tracks, config)) is not None:
         a, b = pair

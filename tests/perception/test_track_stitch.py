@@ -85,5 +85,5 @@ def test_an_appearance_model_that_says_someone_else_keeps_them_apart(monkeypatch
 
 def test_off_and_empty_tracks():
     first, second, empty = _walker(0, range(10)), _walker(1, range(13, 21)), _Track(5)
-    assert len(stitch_fragments([first, second, empty], dataclasses.replace(CONFIG, stitch_gap=-1))) == 2
+    assert len(stitch_fragments([first, second, empty], dataclasses.replace(CONFIG, stitch_gap=0))) == 2
     assert stitch_fragments([], CONFIG) == []
