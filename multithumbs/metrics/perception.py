@@ -60,9 +60,9 @@ def match_people(pred_boxes: np.ndarray, pred_valid: np.ndarray, true_boxes: np.
 
 def _silhouettes(vertices_cam: np.ndarray, faces: np.ndarray, K: np.ndarray, image_size: tuple[int, int],
                  margin: float):
-    """Yield ``(index, canvas, (pad_x, pad_y))`` per mesh of ``(..., V, 3)``: its silhouette filled on a
-    canvas ``margin`` image sizes wider on every side than the image. Meshes with a point at or behind
-    the camera are skipped."""
+    """Yield ``(index, canvas)`` per mesh of ``(..., V, 3)``: its silhouette filled on a canvas ``margin``
+    image sizes wider on every side than the image. Meshes with a point at or behind the camera are
+    skipped."""
     h, w = image_size
     pad = np.round(np.array([margin * w, margin * h])).astype(int)
     size = (h + 2 * pad[1], w + 2 * pad[0])
@@ -73,7 +73,7 @@ def _silhouettes(vertices_cam: np.ndarray, faces: np.ndarray, K: np.ndarray, ima
         uv = points[:, :2] / points[:, 2:] * K[[0, 1], [0, 1]] + K[[0, 1], 2] + pad
         canvas = np.zeros(size, np.uint8)
         cv2.fillPoly(canvas, np.round(uv[faces]).astype(np.int32), 1)
-        yield i, canvas, pad
+        yield i, canvas
 
 
 def silhouette_area(vertices_cam: np.ndarray, faces: np.ndarray, K: np.ndarray, image_size: tuple[int, int],
@@ -81,7 +81,7 @@ def silhouette_area(vertices_cam: np.ndarray, faces: np.ndarray, K: np.ndarray, 
     """Pixels the mesh would cover if nothing hid it, counted on a canvas ``margin`` image sizes wider
     on every side than the image (so that parts beyond the frame count): ``(..., V, 3)`` to ``(...)``."""
     out = np.zeros(int(np.prod(vertices_cam.shape[:-2])))
-    for i, canvas, _ in _silhouettes(vertices_cam, faces, K, image_size, margin):
+    for i, canvas in _silhouettes(vertices_cam, faces, K, image_size, margin):
         out[i] = canvas.sum()
     return out.reshape(vertices_cam.shape[:-2])
 
@@ -94,11 +94,10 @@ def silhouette_boxes(vertices_cam: np.ndarray, faces: np.ndarray, K: np.ndarray,
 
     A body cut by the frame's edge is boxed by the part of it in the image, not by the clamped box of all
     of it: a stride below the frame does not widen its box."""
-    h, w = image_size
     shape = vertices_cam.shape[:-2]
     boxes = np.zeros((int(np.prod(shape)), 4))
     present = np.zeros(len(boxes), bool)
-    for i, canvas, _ in _silhouettes(vertices_cam, faces, K, image_size, 0.0):
+    for i, canvas in _silhouettes(vertices_cam, faces, K, image_size, 0.0):
         rows, cols = np.flatnonzero(canvas.any(axis=1)), np.flatnonzero(canvas.any(axis=0))
         if rows.size:
             boxes[i] = cols[0] - 0.5, rows[0] - 0.5, cols[-1] + 0.5, rows[-1] + 0.5
