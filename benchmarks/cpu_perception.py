@@ -54,6 +54,7 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
     from multithumbs.perception.blazepose_models import BlazePose
     from multithumbs.perception.joints import BLAZEPOSE_SMPL_JOINTS
     from multithumbs.perception.oracle import oracle_tracks
+    from multithumbs.perception.blazepose_backend import person_proposals
     from multithumbs.perception.pose_tracking import track_shot
     from multithumbs.synth.scene import synthesize
     from multithumbs.synth.suite import suite_scene
@@ -69,6 +70,7 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
         config = dataclasses.replace(config, facing=dataclasses.replace(config.facing, enabled=False))
     if not ground:
         config = dataclasses.replace(config, ground=dataclasses.replace(config.ground, enabled=False))
+    proposals = person_proposals(config)
     tallies = np.zeros(4, np.int64)
     correct = counted = 0
     errors, pa_errors = [], []
@@ -76,7 +78,7 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
     frames = switches = 0
     for true_tr, (a, b) in zip(truth, video.truth.world.shots().ranges):
         start = time.perf_counter()
-        poses = track_shot(video.frames[a:b], model, config.tracker)
+        poses = track_shot(video.frames[a:b], model, config.tracker, people=proposals)
         seconds["landmarks"] += time.perf_counter() - start
         frames += b - a
         with torch.no_grad():

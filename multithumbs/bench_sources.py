@@ -29,7 +29,7 @@ from the truth, cuts exact) or ``pixels`` (nothing simulated: cuts by scenedetec
 people by the CPU perception backend, camera trajectories and shared spaces by pycolmap, all from the
 frames a user's decoder gives); ``pixels_no_focal`` as ``pixels`` with the true focal length withheld and
 estimated from the pixels (:func:`multithumbs.scene.focal.estimate_focal`)."""
-PIXEL_BACKENDS = {"shots": "scenedetect:adaptive on the encoded video", "perception": "blazepose (CPU)",
+PIXEL_BACKENDS = {"shots": "scenedetect:adaptive on the encoded video", "perception": "blazepose with nanodet proposals (CPU)",
                   "camera_tracking": "pycolmap", "shared_space": "pycolmap"}
 
 
@@ -113,6 +113,7 @@ def pixel_inputs(video, body, seconds: dict[str, float] | None = None, withhold_
     if "perception" in stages:
         tracks, split = blazepose_tracks(iter(frames), shots, K, body)
         seconds["perception_landmarks"], seconds["perception_fitting"] = split.landmarks, split.fitting
+        seconds["perception_detection"] = split.detection
         start = time.perf_counter()
         tracks = fill_appearance(tracks, frames)
         seconds["appearance"] = time.perf_counter() - start

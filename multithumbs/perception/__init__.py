@@ -113,8 +113,10 @@ def check_backends(terms: list[SpecTerm]) -> None:
             if term.argument:
                 raise InputError(f"perception spec term blazepose:{term.argument}: blazepose takes no options")
             from multithumbs.perception.blazepose_models import check_models
+            from multithumbs.perception.nanodet import check_models as check_person_detector
 
             check_models()
+            check_person_detector()
         elif term.backend == "hmr2":
             options = term.options()
             unknown = set(options) - {"checkpoint", "detector"}

@@ -27,6 +27,7 @@ from typing import Iterable
 import numpy as np
 
 from multithumbs.appearance import DESCRIPTOR_SIZE
+from multithumbs.errors import InputError
 from multithumbs.perception.body_fit import BodyFitConfig, FittedBodies, fit_bodies
 from multithumbs.perception.facing import (HIP_LANDMARKS, FacingConfig, facing_flips, legs_seen, mirrored,
                                            root_velocity)
@@ -51,6 +52,11 @@ class BlazePoseConfig:
     """How the camera's own motion is read from the floor at each person's feet for the facing's walk."""
     num_threads: int = 2
     """Threads of each tflite interpreter."""
+    person_detector: str = "nanodet"
+    """Where the tracker's proposals come from (``tracker.proposals``): ``"nanodet"``, the COCO detector of
+    :mod:`.nanodet`, which sees people from behind and half hidden; ``"hog"``, OpenCV's pedestrian detector."""
+    person_min_score: float = 0.35
+    """NanoDet person score from which a box is a proposal."""
 
 
 @dataclass(frozen=True)
@@ -58,7 +64,10 @@ class StageSeconds:
     """Where the backend's time went, summed over shots (wall seconds)."""
 
     landmarks: float
-    """Detector and landmark models with their pre- and post-processing (tracking and HOG proposals included)."""
+    """BlazePose's detector and landmark models with their pre- and post-processing, and the tracking (the
+    person detector's own time is :attr:`detection`; HOG's, when it is the one, is counted here)."""
+    detection: float
+    """The whole-body person detector (NanoDet) whose boxes are the tracker's proposals."""
     fitting: float
     """Body fitting, with the floor's shift at the feet and the facing labelling."""
     detector_calls: int
@@ -129,6 +138,28 @@ def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.n
         appearance_valid=np.zeros((p, t), bool), valid=poses.valid)
 
 
+def person_proposals(config: BlazePoseConfig, detector=None, seconds: dict | None = None):
+    """The tracker's ``people`` proposals for ``config`` (None: HOG's, or none), loading NanoDet unless
+    ``detector`` is given; the time it takes is added to ``seconds["detection"]`` when given."""
+    if not config.tracker.proposals or config.person_detector == "hog":
+        return None
+    if config.person_detector != "nanodet":
+        raise InputError(f"person detector {config.person_detector!r}: unknown; known: nanodet, hog")
+    if detector is None:
+        from multithumbs.perception.nanodet import NanoDet
+
+        detector = NanoDet()
+
+    def people(frame: np.ndarray) -> np.ndarray:
+        start = time.perf_counter()
+        boxes = detector.people(frame, config.person_min_score)
+        if seconds is not None:
+            seconds["detection"] = seconds.get("detection", 0.0) + time.perf_counter() - start
+        return boxes
+
+    return people
+
+
 def blazepose_tracks(frames: Iterable[np.ndarray], shots: Shots, K: np.ndarray, body=None,
                      config: BlazePoseConfig = BlazePoseConfig(), model=None, progress=None
                      ) -> tuple[list[PersonTracks], StageSeconds]:
@@ -150,9 +181,10 @@ def blazepose_tracks(frames: Iterable[np.ndarray], shots: Shots, K: np.ndarray, 
         from multithumbs.body.model import load_body_model
 
         body = load_body_model()
+    seconds = {"landmarks": 0.0, "detection": 0.0, "fitting": 0.0}
+    people = person_proposals(config, seconds=seconds)
     iterator = iter(frames)
     out: list[PersonTracks] = []
-    seconds = {"landmarks": 0.0, "fitting": 0.0}
     calls = {"detector": 0, "landmark": 0}
     image_size = None
     for k, (a, b) in enumerate(shots.ranges):
@@ -165,16 +197,17 @@ def blazepose_tracks(frames: Iterable[np.ndarray], shots: Shots, K: np.ndarray, 
             image_size = frame.shape[:2]
         report = (lambda done, _total, k=k, n=b - a: progress(k, done, n)) if progress else None
         start = time.perf_counter()
-        poses = track_shot(shot_frames, model, config.tracker, progress=report)
-        seconds["landmarks"] += time.perf_counter() - start
+        detected = seconds["detection"]
+        poses = track_shot(shot_frames, model, config.tracker, progress=report, people=people)
+        seconds["landmarks"] += time.perf_counter() - start - (seconds["detection"] - detected)
         calls["detector"] += poses.detector_calls
         calls["landmark"] += poses.landmark_calls
         start = time.perf_counter()
         floor_flow = shot_floor_flow(shot_frames, poses, config)
         out.append(poses_to_tracks(poses, k, a, K, image_size, body, config.fit, config.facing, floor_flow))
         seconds["fitting"] += time.perf_counter() - start
-    return out, StageSeconds(seconds["landmarks"], seconds["fitting"], calls["detector"], calls["landmark"],
-                             shots.num_frames)
+    return out, StageSeconds(seconds["landmarks"], seconds["detection"], seconds["fitting"], calls["detector"],
+                             calls["landmark"], shots.num_frames)
 
 
 def run_blazepose(video: str | Path, shots: Shots, K: np.ndarray, body=None,

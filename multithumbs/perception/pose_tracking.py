@@ -12,8 +12,9 @@ whenever someone was lost), so people who enter, or who come back after an occlu
    confirms it, it is greyed out in turn, and it becomes a recently lost track (same box, overlap ≥
    ``revive_iou``) or a new one. The detector was trained for one person per image; greying out the
    people it has given is what lets it give the next (recall 0.64 -> see docs/RESULTS.md). Then the
-   boxes OpenCV's HOG pedestrian detector sees where no one is followed each get a landmark pass too
-   (:mod:`.person_proposals`): it finds people by their outline, whom the face-anchored one misses;
+   boxes a whole-body person detector sees where no one is followed each get a landmark pass too
+   (:mod:`.person_proposals`; NanoDet, :mod:`.nanodet`, by default, else OpenCV's HOG): it finds people
+   by their body, whom the face-anchored one misses;
 3. two tracks whose landmark boxes overlap by ``duplicate_iou`` or more, or one nearly inside the other,
    have drifted onto one person: the younger one is marked missed, last seen where it was before. A
    pose whose landmarks shrink into a corner of their square (bodies cut by the frame's edge) is not
@@ -108,9 +109,14 @@ class TrackerConfig:
     """Square tiles across the frame's long side the detector also looks at when the whole frame gives
     nothing (below 2: whole frame only)."""
     proposals: bool = True
-    """Also give a landmark pass to the people OpenCV's HOG pedestrian detector sees where no one is followed
-    (:mod:`.person_proposals`): the face-anchored detector misses people seen from behind or without a
-    readable face (suite recall 0.856 -> see docs/RESULTS.md, session 15)."""
+    """Also give a landmark pass to the people a whole-body person detector sees where no one is followed
+    (:mod:`.person_proposals`; ``track_shot``'s ``people``, else OpenCV's HOG): the face-anchored detector
+    misses people seen from behind or without a readable face (docs/RESULTS.md, sessions 15 and 17)."""
+    proposal_behind: bool = True
+    """Also read a proposal whose centre lies in a followed person's box (someone partly behind them) when
+    it overlaps none of those boxes by ``proposal_same_iou``: on the frame with the followed greyed out."""
+    proposal_same_iou: float = 0.5
+    """Overlap of a proposal with a followed person's landmark box at which it is that person."""
     proposal_min_weight: float = 0.5
     """Smallest HOG SVM margin of a proposal (the suite's boxes score 0.25 to 2.4; people mostly above 0.5)."""
     proposal_scales: tuple[float, ...] = (1.0, 0.5)
@@ -225,11 +231,12 @@ def _best_detection(canvas: np.ndarray, model, config: TrackerConfig) -> tuple[b
 
 
 def _find_people(frame: np.ndarray, model, config: TrackerConfig, tracks: list[_Track], live: list[_Track],
-                 lost: list[_Track], t: int, new_track) -> tuple[int, int]:
+                 lost: list[_Track], t: int, new_track, people=None) -> tuple[int, int]:
     """Detection rounds on a copy of the frame where everyone already followed is greyed out: each round
     takes the detector's best detection, checks it with a landmark pass on the real frame, greys it out
-    too, and makes it a revived or a new track. Then the HOG proposals no one followed get a landmark pass
-    each (:mod:`.person_proposals`). Returns the detector and landmark calls made."""
+    too, and makes it a revived or a new track. Then the person detector's proposals (``people``, else HOG's)
+    no one followed get a landmark pass each (:mod:`.person_proposals`). Returns the detector and landmark
+    calls made."""
     canvas = frame.copy()
     for tr in live:
         _paint_out(canvas, tr.last, config)
@@ -248,16 +255,25 @@ def _find_people(frame: np.ndarray, model, config: TrackerConfig, tracks: list[_
             canvas[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = 127
         _paint_out(canvas, found, config)
     if config.proposals and len(live) < config.max_people:
-        for box in hog_boxes(frame, config.proposal_scales, config.proposal_min_weight):
+        boxes = (people(frame) if people is not None
+                 else hog_boxes(frame, config.proposal_scales, config.proposal_min_weight))
+        for box in boxes:
             if len(live) >= config.max_people:
                 break
-            if any(_inside(0.5 * (box[:2] + box[2:4]), tr.box) for tr in live):
+            covering = [tr for tr in live if _inside(0.5 * (box[:2] + box[2:4]), tr.box)]
+            if covering and (not config.proposal_behind
+                             or any(box_iou(box[:4], tr.box) >= config.proposal_same_iou for tr in covering)):
                 continue
-            roi, used = proposal_roi(frame, box, model, config.proposal_side, config.proposal_zoom,
+            # Someone partly behind a followed person: read on the canvas where the followed are greyed out,
+            # as the detection rounds do, so the landmark model does not read the person in front again.
+            image = canvas if covering else frame
+            roi, used = proposal_roi(image, box, model, config.proposal_side, config.proposal_zoom,
                                      config.min_detection_score)
             calls[0] += used
             calls[1] += 1
-            _take(model.landmarks(frame, roi), frame, config, tracks, live, lost, t, new_track)
+            found = model.landmarks(image, roi)
+            if _take(found, frame, config, tracks, live, lost, t, new_track):
+                _paint_out(canvas, found, config)
     return calls[0], calls[1]
 
 
@@ -283,7 +299,7 @@ def _take(found: bp.Landmarks, frame: np.ndarray, config: TrackerConfig, tracks:
 
 
 def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = TrackerConfig(),
-               progress=None) -> ShotPoses:
+               progress=None, people=None) -> ShotPoses:
     """Follow the people of one shot (module docstring).
 
     Args:
@@ -291,6 +307,8 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
         model: a loaded :class:`~multithumbs.perception.blazepose_models.BlazePose` (or anything with its
             ``detect(image)`` and ``landmarks(image, roi)``).
         progress: optional ``callable(done, total_or_None)`` after each frame.
+        people: optional ``callable(frame) -> (N, 5)`` person boxes and scores, best first, used as the
+            proposals instead of HOG's (a loaded :class:`~multithumbs.perception.nanodet.NanoDet`'s ``people``).
     """
     if config.backfill and not isinstance(frames, Sequence | np.ndarray):
         frames = list(frames)  # the backward fill reads them again
@@ -328,7 +346,7 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
                 for tr in list(tracks) if tr.missed == 0]
         lost = [tr for tr in tracks if 0 < tr.missed <= horizon]
         if t % config.redetect_every == 0 or lost or not live:
-            calls = _find_people(frame, model, config, tracks, live, lost, t, lambda: _Track(len(tracks)))
+            calls = _find_people(frame, model, config, tracks, live, lost, t, lambda: _Track(len(tracks)), people)
             detector_calls, landmark_calls = detector_calls + calls[0], landmark_calls + calls[1]
         live.sort(key=lambda tr: tr.track_id)
         for i, a in enumerate(live):

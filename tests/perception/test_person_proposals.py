@@ -103,3 +103,57 @@ def test_a_person_the_detector_never_gives_is_followed_from_a_proposal(monkeypat
     assert len({identity_of(poses, frames, 1, t) for t in range(10)}) == 1
     blind = track_shot(frames, FaceBlind(), TrackerConfig(proposals=False))
     assert len(blind.track_ids) == 1 and identity_of(blind, frames, 1, 0) is None
+
+
+def test_a_person_detectors_boxes_replace_hogs_when_given(monkeypatch):
+    from multithumbs.perception import pose_tracking
+    from multithumbs.perception.pose_tracking import track_shot
+    from tests.perception.test_pose_tracking import COLOURS, ColourModel, identity_of, render
+
+    class FaceBlind(ColourModel):
+        palette = COLOURS
+        def detect(self, image, min_score=0.5):
+            grey = image.copy()
+            grey[np.all(image == COLOURS[1], axis=-1)] = 90
+            return super().detect(grey, min_score)
+
+    def no_hog(*args):
+        raise AssertionError("HOG ran although a person detector was given")
+
+    frames = render({0: [(100 + 5 * t, 120) for t in range(10)], 1: [(300, 120)] * 10}, 10)
+    monkeypatch.setattr(pose_tracking, "hog_boxes", no_hog)
+    seen = []
+    poses = track_shot(frames, FaceBlind(), people=lambda f: seen.append(f) or np.array([[280.0, 60, 320, 180, 0.9]]))
+    assert seen and identity_of(poses, frames, 1, 0) is not None and len(poses.track_ids) == 2
+    nobody = track_shot(frames, FaceBlind(), people=lambda f: np.zeros((0, 5)))
+    assert identity_of(nobody, frames, 1, 0) is None
+
+
+def test_the_person_detector_is_chosen_by_the_config():
+    import dataclasses
+
+    from multithumbs.perception.blazepose_backend import BlazePoseConfig, person_proposals as chosen
+
+    class Fake:
+        def people(self, frame, min_score):
+            return np.array([[0.0, 0, 1, 1, min_score]])
+
+    config = BlazePoseConfig()
+    assert config.person_detector == "nanodet"
+    assert chosen(config, Fake())(None)[0, 4] == config.person_min_score
+    assert chosen(dataclasses.replace(config, person_detector="hog")) is None
+    off = dataclasses.replace(config, tracker=dataclasses.replace(config.tracker, proposals=False))
+    assert chosen(off) is None
+    with pytest.raises(InputError, match="'yolo': unknown"):
+        chosen(dataclasses.replace(config, person_detector="yolo"))
+
+
+def test_nanodet_finds_both_rendered_walkers(frame):
+    from multithumbs.perception.nanodet import NanoDet
+
+    boxes = NanoDet().people(frame, 0.2)
+    assert (np.diff(boxes[:, 4]) <= 0).all()
+    # The fixture's two walkers (orange at x 175-280, red at 305-430; y 45-315), each boxed to ~20 px.
+    for truth in ([175, 45, 280, 315], [305, 45, 430, 315]):
+        error = np.abs(boxes[:, :4] - truth).max(axis=1)
+        assert error.min() < 25, (truth, boxes.round())
