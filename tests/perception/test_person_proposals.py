@@ -157,3 +157,28 @@ def test_nanodet_finds_both_rendered_walkers(frame):
     for truth in ([175, 45, 280, 315], [305, 45, 430, 315]):
         error = np.abs(boxes[:, :4] - truth).max(axis=1)
         assert error.min() < 25, (truth, boxes.round())
+
+
+def test_someone_partly_behind_a_followed_person_is_read_with_them_greyed_out():
+    from multithumbs.perception.pose_tracking import TrackerConfig, track_shot
+    from tests.perception.test_pose_tracking import COLOURS, ColourModel, identity_of, render
+
+    class FaceBlind(ColourModel):
+        palette = COLOURS   # its detector never gives green
+        def detect(self, image, min_score=0.5):
+            grey = image.copy()
+            grey[np.all(image == COLOURS[1], axis=-1)] = 90
+            return super().detect(grey, min_score)
+
+    # Green stands behind red, 12 px of them showing at red's right; the proposal's centre is in red's box
+    # and on the real frame the landmark pass reads red, the nearer colour.
+    frames = render({0: [(200, 120)] * 8, 1: [(212, 120)] * 8}, 8, order=[1, 0])
+    behind = np.array([[200.0, 60, 236, 180, 0.9]])
+    poses = track_shot(frames, FaceBlind(), people=lambda f: behind)
+    assert identity_of(poses, frames, 0, 0) is not None and identity_of(poses, frames, 1, 0) is not None
+    assert len(poses.track_ids) == 2
+    skipped = track_shot(frames, FaceBlind(), TrackerConfig(proposal_behind=False), people=lambda f: behind)
+    assert len(skipped.track_ids) == 1 and identity_of(skipped, frames, 1, 0) is None
+    # A proposal that is the followed person's own box (IoU >= proposal_same_iou) is never read again.
+    same = track_shot(frames, FaceBlind(), people=lambda f: np.array([[182.0, 60, 220, 180, 0.9]]))
+    assert len(same.track_ids) == 1
