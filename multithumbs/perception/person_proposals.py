@@ -1,4 +1,8 @@
-"""Where else to look for people: OpenCV's HOG pedestrian detector, for those the face-anchored one misses.
+"""Where else to look for people: boxes of a whole-body person detector, for those the face-anchored one misses.
+
+The boxes come from NanoDet (:mod:`.nanodet`, the default: ``BlazePoseConfig.person_detector``) or from
+OpenCV's HOG pedestrian detector (:func:`hog_boxes`, below); :func:`proposal_roi` turns either into the
+landmark model's square.
 
 BlazePose's detector finds a person from their face. People seen from behind, side-on, or without a
 readable face (the suite's mannequins: a person wholly seen in s07 scores nothing above 0.1 at any scale) are
