@@ -105,3 +105,16 @@ def test_an_unchecked_import_of_a_setup_only_package_is_one_line_too(tmp_path):
     out = cli("needs-scenedetect", tmp_path=tmp_path, prelude=prelude)
     line, _ = one_line(out)
     assert "pip install --no-deps scenedetect==0.7.2" in line
+
+
+def test_missing_person_detector_files_are_one_line_before_the_flow(tmp_path, scenes):
+    """The default perception needs NanoDet's files too: without them, one line naming them and the install
+    command, before Prefect or torch is imported."""
+    prelude = f"import os\nos.environ['MULTITHUMBS_NANODET_DIR'] = {str(tmp_path / 'none')!r}"
+    out = cli("run", scenes / "a" / "video.mp4", "--out", tmp_path / "o", tmp_path=tmp_path, prelude=prelude,
+              importtime=True)
+    line, _ = one_line(out)
+    assert "person detector 'nanodet'" in line and "nanodet.json" in line and "install with" in line, line
+    imported = {l.split("|")[-1].strip() for l in out.stderr.splitlines() if l.startswith("import time:")}
+    assert not imported & {"prefect", "torch"}
+    assert not (tmp_path / "o").exists()
