@@ -237,7 +237,8 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
                 for tr in list(tracks) if tr.missed == 0]
         lost = [tr for tr in tracks if 0 < tr.missed <= horizon]
         if t % config.redetect_every == 0 or lost or not live:
-            calls = _find_people(frame, model, config, tracks, live, lost, t, lambda: _Track(len(tracks)), people)
+            looks = people if people is None or t % config.proposal_every == 0 else (lambda _: np.zeros((0, 5)))
+            calls = _find_people(frame, model, config, tracks, live, lost, t, lambda: _Track(len(tracks)), looks)
             detector_calls, landmark_calls = detector_calls + calls[0], landmark_calls + calls[1]
         live.sort(key=lambda tr: tr.track_id)
         for i, a in enumerate(live):

@@ -182,3 +182,15 @@ def test_someone_partly_behind_a_followed_person_is_read_with_them_greyed_out():
     # A proposal that is the followed person's own box (IoU >= proposal_same_iou) is never read again.
     same = track_shot(frames, FaceBlind(), people=lambda f: np.array([[182.0, 60, 220, 180, 0.9]]))
     assert len(same.track_ids) == 1
+
+
+def test_the_person_detector_looks_every_proposal_every_frames():
+    from multithumbs.perception.pose_tracking import TrackerConfig, track_shot
+    from tests.perception.test_pose_tracking import ColourModel, render
+
+    frames = render({0: [(100 + 5 * t, 120) for t in range(10)]}, 10)
+    for every, expected in ((1, list(range(10))), (3, [0, 3, 6, 9])):
+        looked = []
+        track_shot(frames, ColourModel(), TrackerConfig(proposal_every=every),
+                   people=lambda f: looked.append(next(t for t, g in enumerate(frames) if g is f)) or np.zeros((0, 5)))
+        assert looked == expected, (every, looked)
