@@ -148,17 +148,6 @@ def test_the_person_detector_is_chosen_by_the_config():
         chosen(dataclasses.replace(config, person_detector="yolo"))
 
 
-def test_nanodet_finds_both_rendered_walkers(frame):
-    from multithumbs.perception.nanodet import NanoDet
-
-    boxes = NanoDet().people(frame, 0.2)
-    assert (np.diff(boxes[:, 4]) <= 0).all()
-    # The fixture's two walkers (orange at x 175-280, red at 305-430; y 45-315), each boxed to ~20 px.
-    for truth in ([175, 45, 280, 315], [305, 45, 430, 315]):
-        error = np.abs(boxes[:, :4] - truth).max(axis=1)
-        assert error.min() < 25, (truth, boxes.round())
-
-
 def test_someone_partly_behind_a_followed_person_is_read_with_them_greyed_out():
     from multithumbs.perception.pose_tracking import TrackerConfig, track_shot
     from tests.perception.test_pose_tracking import COLOURS, ColourModel, identity_of, render
