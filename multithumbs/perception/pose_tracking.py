@@ -54,7 +54,7 @@ from multithumbs.perception.person_proposals import hog_boxes, proposal_roi
 from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity, moved_square, plausible, same_person
 from multithumbs.perception.shot_assembly import ShotPoses, assemble, drop_short_runs, landmark_box, settle_frame
 from multithumbs.perception.track_appearance import clearly_better, updated_model
-from multithumbs.perception.track_split import merged_back, moved, split
+from multithumbs.perception.track_split import merged_back, moved, remember_fit, split
 from multithumbs.perception.track_stitch import stitch_fragments
 from multithumbs.perception.tracker_config import TrackerConfig
 
@@ -71,7 +71,7 @@ class _Track:
     model_counts: np.ndarray | None = None
     descriptors: dict = field(default_factory=dict)  # t -> this frame's reading's descriptor (until settled)
     unlike: list = field(default_factory=list)  # the latest consecutive frames whose readings fit the model poorly
-    fits: list = field(default_factory=list)  # the model's dissimilarity to the last 5 readings that fitted it
+    fits: list = field(default_factory=list)  # the model's dissimilarity to the last 5 readings that fitted it as usual (track_split)
     split_from: "_Track | None" = None  # the track this one was split from, while it may still be merged back
     alike: int = 0  # this track's latest readings in a row that fit ``split_from``'s model well
 
@@ -231,8 +231,7 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
                 tr.unlike.append(t)
             else:
                 tr.unlike = []
-                if fit == fit:  # NaN: no model to ask yet
-                    tr.fits = (tr.fits + [fit])[-5:]
+                remember_fit(tr, fit, config)
         live = [split(tr, t, tracks, lambda: _Track(len(tracks))) if moved(tr, config) else tr
                 for tr in list(tracks) if tr.missed == 0]
         lost = [tr for tr in tracks if 0 < tr.missed <= horizon]
@@ -267,7 +266,7 @@ def _lost_track_for(box: np.ndarray, descriptor: np.ndarray, lost: list[_Track],
     """The lost track a person found again at ``box`` continues, or None (a new person).
 
     Recently lost tracks whose last box overlaps by ``revive_iou`` or more are the candidates, the best
-    overlap first, unless another candidate's model fits clearly better. A candidate whose model says the
+    overlap first, unless another candidate's model fits clearly better (and at most ``split_dissimilarity``). A candidate whose model says the
     person is someone else is not taken; then, or with no candidate, the lost track whose model alone
     fits clearly best and closely enough (``relink_dissimilarity``) is taken.
     """
@@ -276,7 +275,10 @@ def _lost_track_for(box: np.ndarray, descriptor: np.ndarray, lost: list[_Track],
     overlap = [box_iou(box, tr.box) for tr in recent]
     near = [tr for tr, o in zip(recent, overlap) if o >= config.revive_iou]
     if near:
-        better = clearly_better([fit[id(tr)] for tr in near], config.appearance_margin)
+        # A model that finds the person unlike its own (above split_dissimilarity) is no evidence for its
+        # track: it must not win over a better-overlapping track that has no model yet (s02, session 18).
+        better = clearly_better([fit[id(tr)] if fit[id(tr)] <= config.split_dissimilarity else float("nan")
+                                 for tr in near], config.appearance_margin)
         pick = near[better] if better is not None else recent[int(np.argmax(overlap))]
         if not fit[id(pick)] > config.drift_dissimilarity:
             return pick
