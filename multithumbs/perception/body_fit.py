@@ -8,9 +8,7 @@ A closed-form start puts the optimiser in the right basin:
 
 * orientation: Kabsch of the rest pose's hips and shoulders onto the 3D ones, else onto the 2D ones
   lifted onto a fronto-parallel plane (facing the camera or away, and the roll); a frame with fewer than
-  three of them, collinear ones, or a 3D torso narrower than ``min_torso_span`` of its person's usual
-  one (a reading that folded one shoulder onto the other says nothing of the turn), takes its person's
-  nearest frame that has them;
+  three of them, or collinear ones, takes its person's nearest frame that has them;
 * position, weak perspective: the keypoints against the 3D joints' offsets from the mid-hip (the rotated
   rest torso where those are absent) give the mid-hip's image and depth, robustly;
 * betas from the median 3D bone lengths; hips, knees, shoulders and elbows bent onto the 3D bones (2D
@@ -77,10 +75,6 @@ class BodyFitConfig:
         w_betas: weight of ``‖β‖²`` per person: SMPL's shape space has unit variance.
         w_smooth: weight of every joint's squared second difference over consecutive valid frames (m⁻²):
             joints accelerate by ~2 cm per frame² at 30 fps.
-        min_torso_span: share of its person's median 3D hip width and shoulder width a frame's reading needs
-            for its torso to set that frame's starting orientation. BlazePose's first readings of a person
-            sometimes fold one shoulder onto the other (s03 from its pixels: 4 cm against 30; the
-            start then faced 168° from the truth and the fit still 127°; docs/RESULTS.md, session 18).
         robust_sigma_px: Geman-McClure scale ``σ`` (px), ``ρ(r) = σ² r² / (σ² + r²)``: quadratic below it,
             saturating at ``σ²`` above, so a mis-detected keypoint pulls with bounded force.
         threads: torch intra-op threads, set for good with :func:`multithumbs.determinism.fix_threads` (the
@@ -95,7 +89,6 @@ class BodyFitConfig:
     w_pose_prior: float = 1.0
     w_betas: float = 1.0
     w_smooth: float = 2500.0
-    min_torso_span: float = 0.5
     robust_sigma_px: float = 20.0
     threads: int = THREADS
 
@@ -155,7 +148,7 @@ def fit_bodies(keypoints2d, joints3d, valid, K, body=None, config: BodyFitConfig
     with torch.no_grad():
         rest = body.rest_joints(np.zeros(NUM_BETAS)).double().numpy()                      # (24, 3)
         shape_dirs = body.rest_joints(np.eye(NUM_BETAS)).double().numpy() - rest            # (10, 24, 3)
-    rotation, pelvis = _initialise(kp, x3, valid, K, rest, config.robust_sigma_px, config.min_torso_span)
+    rotation, pelvis = _initialise(kp, x3, valid, K, rest, config.robust_sigma_px)
     betas = _initial_betas(x3, rest, shape_dirs, config)
     midhip = pelvis - rotation @ (rest[0] - 0.5 * (rest[1] + rest[2]))
     pose = _limb_pose(_lifted(kp, x3, K, midhip), rotation, rest)
@@ -183,7 +176,7 @@ def _checked(keypoints2d, joints3d, valid, K):
     return kp, x3, valid, K
 
 
-def _initialise(kp, x3, valid, K, rest, sigma_px: float, min_torso_span: float = 0.0):
+def _initialise(kp, x3, valid, K, rest, sigma_px: float):
     """Closed-form ``(P, T, 3, 3)`` body-to-camera rotations and ``(P, T, 3)`` pelvis positions (module docstring).
 
     ``kp (P, T, 24, 3)`` and ``x3 (P, T, 24, 4)`` with confidences zeroed in invalid frames, ``rest (24, 3)``
@@ -204,7 +197,7 @@ def _initialise(kp, x3, valid, K, rest, sigma_px: float, min_torso_span: float =
     principal = np.linalg.eigvalsh(np.einsum("...n,...ni,...nj->...ij", weight, centred, centred))  # ascending
     # Three points that are not collinear: the second principal spread at least 1% of the first.
     oriented = (valid & ((weight > 0).sum(-1) >= 3) & (principal[..., 2] > 0)
-                & (principal[..., 1] > 1e-2 * principal[..., 2]) & _torso_spread(x3, valid, min_torso_span))
+                & (principal[..., 1] > 1e-2 * principal[..., 2]))
     source = np.broadcast_to(rest_rel[torso], target.shape)
     rotation = umeyama(source, target, np.where(oriented[..., None], weight, 1.0), with_scale=False).rotation.numpy()
     rotation = _hold(np.where(oriented[..., None, None], rotation, FACING_CAMERA), oriented)
@@ -235,16 +228,6 @@ def _initialise(kp, x3, valid, K, rest, sigma_px: float, min_torso_span: float =
     pelvis = midhip + np.einsum("ptij,j->pti", rotation, rest_rel[0])
     pelvis = _hold(np.where(placed[..., None], pelvis, [0.0, 0.0, DEFAULT_DEPTH]), placed)
     return rotation, pelvis
-
-
-def _torso_spread(x3, valid, min_share: float) -> np.ndarray:
-    """``(P, T)`` bool: the frame's 3D hips and shoulders are each at least ``min_share`` as far apart as
-    their person's median over frames that have all four (True where a frame lacks them: nothing to judge)."""
-    complete = valid & (x3[..., list(TORSO), 3] > 0).all(-1)
-    spans = np.linalg.norm(x3[..., [1, 16], :3] - x3[..., [2, 17], :3], axis=-1)             # (P, T, 2)
-    usual = np.stack([np.median(spans[p, complete[p]], axis=0) if complete[p].any() else np.zeros(2)
-                      for p in range(spans.shape[0])]) if spans.shape[0] else np.zeros((0, 2))
-    return ~complete | (spans >= min_share * usual[:, None, :]).all(-1)
 
 
 def _initial_betas(x3, rest, shape_dirs, config: BodyFitConfig) -> np.ndarray:
