@@ -60,9 +60,10 @@ class TrackerConfig:
     """Also give a landmark pass to the people a whole-body person detector sees where no one is followed
     (:mod:`.person_proposals`; ``track_shot``'s ``people``, else OpenCV's HOG): the face-anchored detector
     misses people seen from behind or without a readable face (docs/RESULTS.md, sessions 15 and 17)."""
-    proposal_every: int = 1
+    proposal_every: int = 2
     """Frames between the person detector's looks (``track_shot``'s ``people``) on frames the tracker
-    searches: NanoDet costs ~0.25 s a 640x360 frame on 2 cores (docs/RESULTS.md, session 17)."""
+    searches: NanoDet costs ~0.25 s a 640x360 frame on 2 cores (docs/RESULTS.md, session 17); every
+    second frame keeps 4 people at 640x360 within 0.5 s a frame (session 19)."""
     proposal_behind: bool = True
     """Also read a proposal whose centre lies in a followed person's box (someone partly behind them) when
     it overlaps none of those boxes by ``proposal_same_iou``: on the frame with the followed greyed out."""
