@@ -161,6 +161,11 @@ class PostConfig:
             track alone (first differences pull a track's ends inwards and slow every walk).
         threads: torch intra-op threads of the optimisation loop, set for good (0: leave torch's setting);
             see :func:`multithumbs.determinism.fix_threads`.
+        robust_sigma_px: Geman-McClure scale ``σ`` (px) of each keypoint's 2D residual in ``L_2D`` and
+            ``L_cross``, ``ρ(r) = σ² r² / (σ² + r²)``: quadratic below it (ViTPose-class errors of a few
+            pixels are unchanged), saturating above it, so a keypoint on the wrong limb or a reading
+            mirrored front to back pulls with bounded force, as in the CPU backend's own fit
+            (``BodyFitConfig.robust_sigma_px``). 0: plain squares.
     """
 
     iterations: int = 300
@@ -175,6 +180,7 @@ class PostConfig:
     keypoint_confidence: float = 0.3
     smooth_order: int = 2
     threads: int = 1
+    robust_sigma_px: float = 20.0
 
 
 VARIANTS = ("full", "no_cam", "no_post", "no_stage", "no_align", "independent_shots", "appearance_only",

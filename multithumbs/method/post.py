@@ -14,6 +14,8 @@ Minimises over every person's world SMPL parameters (orientation, translation, b
   camera of ``t_b`` against the keypoints observed at ``t_b``, and vice versa.
 * ``L_2D`` and the root prior are the data terms that keep the smoothed motion on the observations
   (the paper's objective has none besides L_cross; without them smoothing alone drifts the roots).
+  Each keypoint's residual in ``L_2D`` and ``L_cross`` goes through Geman-McClure
+  (:attr:`PostConfig.robust_sigma_px`): a keypoint far off pulls with bounded force.
 
 All terms are means (2D residuals in units of half the image's larger side), so weights do not depend
 on the number of people, frames or joints. Joints come from SMPL's own kinematics
@@ -158,7 +160,8 @@ class _Terms:
         kp_w = torch.where(kp[..., 2] >= config.keypoint_confidence, kp[..., 2], 0.0) * valid[..., None]
         # Coordinate-major (..., 2, 24) like the projections below.
         self.kp_uv = (kp[..., :2] / norm).transpose(-1, -2).contiguous()
-        self.kp_w = (config.w_2d * kp_w / kp_w.sum().clamp(min=1e-9)).unsqueeze(-2)
+        self.kp_w = config.w_2d * kp_w / kp_w.sum().clamp(min=1e-9)
+        self.sigma2 = (config.robust_sigma_px / norm) ** 2  # 0: plain squares
         # Cross-camera terms (person, cut) matched with both boundary frames valid: each direction's
         # joints at one boundary frame against the keypoints at the other, each pair a weighted mean.
         pairs = [(p, src, dst) for p in range(data.valid.shape[0]) for i, c in enumerate(data.cut_frames)
@@ -169,7 +172,7 @@ class _Terms:
             person, src, dst = (torch.as_tensor([pair[k] for pair in pairs]) for k in range(3))
             w = kp_w[person, dst]
             self.cross = (person * data.valid.shape[1] + src, self.KR[dst], self.Kt[dst], self.kp_uv[person, dst],
-                          (config.w_cross * w / (w.sum(-1, keepdim=True).clamp(min=1e-9) * len(pairs))).unsqueeze(-2))
+                          config.w_cross * w / (w.sum(-1, keepdim=True).clamp(min=1e-9) * len(pairs)))
 
     @staticmethod
     def _normalised_pixels(points: torch.Tensor, KR: torch.Tensor, Kt: torch.Tensor) -> torch.Tensor:
@@ -181,6 +184,14 @@ class _Terms:
         h = KR @ points.transpose(-1, -2) + Kt.unsqueeze(-1)
         return h[..., :2, :] / h[..., 2:, :].clamp(min=1e-6)
 
+    def _reprojection(self, uv: torch.Tensor, kp_uv: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
+        """Weighted sum over keypoints of ``ρ`` of the squared distance between ``(..., 2, N)`` projections
+        and keypoints (``weight (..., N)``): Geman-McClure, ``σ² r² / (σ² + r²)``, or ``r²`` when ``σ`` is 0."""
+        r2 = (uv - kp_uv).square().sum(-2)
+        if self.sigma2 > 0:
+            r2 = self.sigma2 * r2 / (r2 + self.sigma2)
+        return (r2 * weight).sum()
+
     def loss(self, joints, body_pose, pose0, betas, transl, transl0) -> torch.Tensor:
         """The objective for world joints ``(P, T, 24, 3)`` of the current parameters (``pose0``,
         ``transl0``: the propagated estimates the priors pull towards)."""
@@ -189,10 +200,10 @@ class _Terms:
             diff = diff[:, 1:] - diff[:, :-1]
         loss = (diff.square() * self.smooth_w).sum()
         loss = loss + ((body_pose - pose0).square() * self.pose_w).sum() + self.shape_w * betas.square().sum()
-        loss = loss + ((self._normalised_pixels(joints, self.KR, self.Kt) - self.kp_uv).square() * self.kp_w).sum()
+        loss = loss + self._reprojection(self._normalised_pixels(joints, self.KR, self.Kt), self.kp_uv, self.kp_w)
         loss = loss + ((transl - transl0).square() * self.root_w).sum()
         if self.cross is not None:
             rows, KR, Kt, kp_uv, weight = self.cross
             uv = self._normalised_pixels(joints.flatten(0, 1).index_select(0, rows), KR, Kt)
-            loss = loss + ((uv - kp_uv).square() * weight).sum()
+            loss = loss + self._reprojection(uv, kp_uv, weight)
         return loss

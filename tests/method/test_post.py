@@ -75,8 +75,10 @@ def _reference_loss(data, config, joints, body_pose, betas, transl):
     smooth = (diff.pow(2).sum(-1).mean(-1) * windows).sum() / windows.sum().clamp(min=1)
     pose_dev = ((body_pose - as_t(data.body_pose)).pow(2).sum((-1, -2)) * vmask).sum() / vmask.sum()
     prior = config.w_shape * betas.pow(2).sum(-1).mean() + config.w_pose_prior * pose_dev
+    sigma2 = (config.robust_sigma_px / norm) ** 2
+    rho = (lambda r2: sigma2 * r2 / (r2 + sigma2)) if sigma2 > 0 else (lambda r2: r2)  # noqa: E731
     uv = project(world_to_camera(joints, R, t), K)
-    data2d = ((((uv - kp[..., :2]) / norm).pow(2).sum(-1)) * kp_w).sum() / kp_w.sum()
+    data2d = (rho(((uv - kp[..., :2]) / norm).pow(2).sum(-1)) * kp_w).sum() / kp_w.sum()
     root = ((transl - as_t(data.transl)).pow(2).sum(-1) * vmask).sum() / vmask.sum()
     loss = config.w_smooth * (smooth + prior) + config.w_2d * data2d + config.w_root * root
     terms = []
@@ -86,7 +88,7 @@ def _reference_loss(data, config, joints, body_pose, betas, transl):
                 for src, dst in ((c - 1, c), (c, c - 1)):
                     uv_x = project(world_to_camera(joints[p, src], R[dst], t[dst]), K[dst])
                     w = kp_w[p, dst]
-                    terms.append(((((uv_x - kp[p, dst, :, :2]) / norm).pow(2).sum(-1)) * w).sum() / w.sum())
+                    terms.append((rho(((uv_x - kp[p, dst, :, :2]) / norm).pow(2).sum(-1)) * w).sum() / w.sum())
     return loss + config.w_cross * torch.stack(terms).mean()
 
 
@@ -109,7 +111,7 @@ def test_the_optimised_objective_is_the_documented_one():
                                transl=stack(data.transl) + [[[1.0, 0.0, 0.0]], [[0.0] * 3]],
                                valid=valid, keypoints=keypoints, cut_frames=np.array([6]),
                                matched_at_cut=np.array([[True], [False]]))
-    for config in (PostConfig(), PostConfig(smooth_order=1)):
+    for config in (PostConfig(), PostConfig(smooth_order=1), PostConfig(robust_sigma_px=0.0)):
         terms = _Terms(data, config)
         params = [torch.as_tensor(x).clone() + torch.as_tensor(rng.normal(0, 0.05, np.shape(x)))
                   for x in (data.global_orient, data.body_pose, data.betas, data.transl)]
@@ -128,3 +130,18 @@ def test_the_optimised_objective_is_the_documented_one():
             data.global_orient, data.body_pose, data.betas, data.transl))), torch.as_tensor(data.body_pose),
             torch.as_tensor(data.betas), torch.as_tensor(data.transl))
         assert abs(first - float(start)) <= 1e-12 * float(start)
+
+
+def test_a_frame_whose_keypoints_are_far_off_pulls_the_body_with_bounded_force(body):
+    # One frame's keypoints all 80 px to the side (a reading of someone else, or mirrored front to back):
+    # with squared residuals it drags that frame's body towards them; Geman-McClure bounds its pull.
+    data, joints = _static_person(body)
+    keypoints = data.keypoints.copy()
+    keypoints[0, 15, :, 0] += 80.0
+    data = dataclasses.replace(data, keypoints=keypoints)
+    moved = {}
+    for sigma in (PostConfig().robust_sigma_px, 0.0):
+        out = post_process(data, body, dataclasses.replace(FAST, robust_sigma_px=sigma))
+        after = body.joints(out.global_orient, out.body_pose, out.betas, out.transl).double().numpy()
+        moved[sigma] = np.linalg.norm(after[0, 15] - joints[0, 15], axis=-1).mean()
+    assert moved[PostConfig().robust_sigma_px] < 0.5 * moved[0.0], moved
