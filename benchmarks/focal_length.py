@@ -21,7 +21,7 @@ from pathlib import Path
 
 def run_scene(config, runs: int) -> dict:
     from multithumbs.body.model import load_body_model
-    from multithumbs.scene.focal import estimate_focal, motion_estimate
+    from multithumbs.scene.focal import estimate_focal, frames_estimate, motion_estimate
     from multithumbs.scene.focal_heights import focal_from_heights
     from multithumbs.synth.files import write_video
     from multithumbs.synth.perception import simulate_perception
@@ -40,7 +40,7 @@ def run_scene(config, runs: int) -> dict:
     chosen, heights = [], []
     for seed in range(runs):
         tracks = simulate_perception(video, body, seed=seed)
-        chosen.append(estimate_focal(frames, ranges, tracks=tracks, motion=motion))
+        chosen.append(estimate_focal(frames, ranges, tracks=tracks, from_frames=motion))
         h, _ = focal_from_heights(tracks, frames.shape[1:3])
         heights.append(h.focal_px if h is not None else float("nan"))
     final = sorted(chosen, key=lambda e: e.focal_px)[len(chosen) // 2]

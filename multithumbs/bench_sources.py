@@ -102,11 +102,11 @@ def pixel_inputs(video, body, seconds: dict[str, float] | None = None, withhold_
                          f"{video.truth.world.cut_frames.tolist()}, and simulated perception needs the true ones")
     focal = None
     if withhold_focal:
-        from multithumbs.scene.focal import estimate_focal, motion_estimate
+        from multithumbs.scene.focal import estimate_focal, frames_estimate
         from multithumbs.scene.two_view import default_intrinsics
 
         start = time.perf_counter()
-        motion = motion_estimate(frames, shots.ranges)
+        motion = frames_estimate(frames, shots.ranges)
         h, w = frames.shape[1:3]
         K = default_intrinsics(w, h) if motion[0] is None else motion[0].K(w, h)
         seconds["focal"] = time.perf_counter() - start
@@ -120,7 +120,7 @@ def pixel_inputs(video, body, seconds: dict[str, float] | None = None, withhold_
     else:
         tracks = simulate_perception(video, body, seed=seed)
     if withhold_focal:
-        focal = estimate_focal(frames, shots.ranges, tracks=tracks, motion=motion)
+        focal = estimate_focal(frames, shots.ranges, tracks=tracks, from_frames=motion)
         K = focal.K(w, h)  # the tracks keep the K they were fitted in: the method re-expresses them
     geometry = None
     if "camera_tracking" in stages or "shared_space" in stages:

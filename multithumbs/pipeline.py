@@ -366,12 +366,12 @@ def run_video_file(video_path, perception: str, body, intrinsics: np.ndarray | N
     cached tasks): shots by scenedetect (or the given ``cuts``), people from the ``perception`` spec
     (:func:`multithumbs.perception.load_perception`), camera trajectories and shared spaces by pycolmap with
     the people masked out, then :func:`run_video`. ``intrinsics`` ``(3, 3)``, when None, are estimated
-    from the pixels (:func:`multithumbs.scene.focal.estimate_focal`: a moving camera, else people's heights,
-    else a 60° horizontal field of view); the diagnostics ``focal_px``, ``focal_source`` and ``focal_detail``
+    from the pixels (:func:`multithumbs.scene.focal.estimate_focal`: a moving camera, else straight edges'
+    vanishing points, else people's heights, else a 60° horizontal field of view); the diagnostics ``focal_px``, ``focal_source`` and ``focal_detail``
     say which. Decodes the whole video into memory: meant for clips.
     """
     from multithumbs.perception import load_perception
-    from multithumbs.scene.focal import estimate_focal, given_focal, motion_estimate
+    from multithumbs.scene.focal import estimate_focal, frames_estimate, given_focal
     from multithumbs.scene.geometry import scene_geometry
     from multithumbs.scene.shots import detect_shots
     from multithumbs.scene.two_view import default_intrinsics
@@ -384,12 +384,12 @@ def run_video_file(video_path, perception: str, body, intrinsics: np.ndarray | N
         shots = Shots(np.asarray(cuts, np.int64), info.fps, info.num_frames, np.zeros(info.num_frames), "given")
     frames = read_frames(video_path)
     if intrinsics is None:  # the focal length from the pixels (multithumbs.scene.focal); perception needs a K first
-        motion = motion_estimate(frames, shots.ranges)
+        motion = frames_estimate(frames, shots.ranges)
         K = default_intrinsics(info.width, info.height) if motion[0] is None else motion[0].K(info.width, info.height)
     else:
         K = np.asarray(intrinsics, np.float64)
     tracks = load_perception(perception, video_path, shots, trust=trust_pickle, intrinsics=K, body=body)
-    focal = given_focal(K) if intrinsics is not None else estimate_focal(frames, shots.ranges, tracks=tracks, motion=motion)
+    focal = given_focal(K) if intrinsics is not None else estimate_focal(frames, shots.ranges, tracks=tracks, from_frames=motion)
     K = K if intrinsics is not None else focal.K(info.width, info.height)  # tracks keep theirs: re-expressed
     geometry = scene_geometry(frames, shots, K, np.concatenate([tr.people_mask() for tr in tracks]))
     result = run_video(shots, tracks, list(geometry.trajectories), list(geometry.spaces), body, config)

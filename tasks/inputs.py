@@ -175,16 +175,16 @@ def perceive_people(store_url: str, inputs: dict[str, ArtifactRef], params: dict
 @stage_task("focal")
 def estimate_video_focal(store_url: str, inputs: dict[str, ArtifactRef], params: dict, video_path: str) -> ArtifactRef:
     """The video's focal length when nobody gave it (:mod:`multithumbs.scene.focal`). Inputs ``shots`` only:
-    the moving-camera estimate (a :class:`FocalEstimate` whose source is ``none`` when no shot gives one);
-    with ``motion`` and ``tracks_<k>`` too: the final estimate (the motion's, else people's heights, else
-    the default). Params: ``video`` digest, ``config`` of :class:`FocalConfig`."""
+    the estimate from the frames alone, a moving camera or straight edges (a :class:`FocalEstimate` whose
+    source is ``none`` when neither gives one); with ``motion`` (that answer) and ``tracks_<k>`` too: the final
+    estimate (the frames', else people's heights, else the default). Params: ``video`` digest, ``config`` of :class:`FocalConfig`."""
     def compute():
-        from multithumbs.scene.focal import FocalConfig, FocalEstimate, estimate_focal, motion_estimate
+        from multithumbs.scene.focal import FocalConfig, FocalEstimate, estimate_focal, frames_estimate
         from multithumbs.video import read_frames
 
         shots, config = load(inputs["shots"]), _config(FocalConfig, params["config"])
         if "motion" not in inputs:
-            estimate, why = motion_estimate(read_frames(video_path), shots.ranges, None, config)
+            estimate, why = frames_estimate(read_frames(video_path), shots.ranges, None, config)
             return estimate or FocalEstimate(0.0, "none", why)
         motion = load(inputs["motion"])
         if motion.source != "none":
@@ -192,7 +192,7 @@ def estimate_video_focal(store_url: str, inputs: dict[str, ArtifactRef], params:
         tracks = [load(inputs[f"tracks_{k}"]) for k in range(shots.num_shots)]
         h, w = tracks[0].image_size
         return estimate_focal(np.zeros((0, h, w, 3), np.uint8), shots.ranges, tracks=tracks, config=config,
-                              motion=(None, motion.detail))
+                              from_frames=(None, motion.detail))
     return cached_stage("focal", compute, store_url, params, inputs)
 
 

@@ -12,13 +12,17 @@ source gave the focal length (square pixels and the principal point at the image
    rotation's), and the starts stay where they began. A camera that turns about its centre (a pan: homographies
    explain the tracks) gives ``rotating_camera``: the focal length that makes ``K^-1 H K`` a rotation. A
    static camera gives nothing.
-2. ``learned``: a learned scene model's intrinsics (VGGT or Depth-Anything-3 through
+2. ``lines`` (:func:`multithumbs.scene.focal_lines.focal_from_lines`): straight edges along three orthogonal
+   directions (floor planks, wall corners, furniture, door frames) meet at vanishing points whose
+   orthogonality fixes the focal length; a few frames per shot, each refined on its segments, the median of
+   the frames that pin it down. A level camera looking square at a wall does not.
+3. ``learned``: a learned scene model's intrinsics (VGGT or Depth-Anything-3 through
    :mod:`multithumbs.scene.learned`), when the caller gives one (:func:`focal_from_learned`).
-3. ``heights`` (:func:`multithumbs.scene.focal_heights.focal_from_heights`): standing people as vertical poles of one height. Every
+4. ``heights`` (:func:`multithumbs.scene.focal_heights.focal_from_heights`): standing people as vertical poles of one height. Every
    person-frame gives a foot point (mid-ankle) and a top point (mid-shoulder); a camera of unknown focal
    length, pitch, roll and height above a common floor is fitted so that each foot point, put on the floor,
    projects its top point at the pole's height. Needs people at different depths; otherwise nothing.
-4. ``default``: the 60 degree guess (:func:`multithumbs.scene.two_view.default_intrinsics`), its detail
+5. ``default``: the 60 degree guess (:func:`multithumbs.scene.two_view.default_intrinsics`), its detail
    saying why nothing else applied.
 """
 
@@ -36,8 +40,9 @@ from scipy.spatial.transform import Rotation
 from multithumbs.errors import InputError
 from multithumbs.geometry import intrinsics
 
-SOURCES = ("given", "moving_camera", "rotating_camera", "learned", "heights", "default")
+SOURCES = ("given", "moving_camera", "rotating_camera", "lines", "learned", "heights", "default")
 SOURCE_WORDS = {"given": "given", "moving_camera": "moving camera", "rotating_camera": "rotating camera",
+                "lines": "vanishing points",
                 "learned": "learned model", "heights": "people's heights", "default": "default 60° guess"}
 
 
@@ -84,6 +89,13 @@ class FocalConfig:
         min_heights: fewest person-frames for the heights estimate.
         min_depth_spread: foot rows must spread over this fraction of the image height (people at depths).
         fov_range_deg: estimates outside this horizontal field of view are refused.
+        line_frames: frames of each shot whose straight edges are read.
+        min_line_length: shortest line segment used (pixels).
+        max_line_segments: at most this many segments per frame, longest first.
+        line_angle_deg: a segment within this angle of a vanishing point belongs to it.
+        max_line_std: a frame counts when the standard deviation of its ``log f`` is at most this.
+        min_line_frames: fewest frames that must count.
+        line_agreement: at least half the frames that count within this of their median (in ``log f``).
     """
 
     keyframes: int = 8
@@ -97,6 +109,13 @@ class FocalConfig:
     min_heights: int = 20
     min_depth_spread: float = 0.08
     fov_range_deg: tuple[float, float] = (15.0, 120.0)
+    line_frames: int = 6
+    min_line_length: float = 20.0
+    max_line_segments: int = 300
+    line_angle_deg: float = 1.0
+    max_line_std: float = 0.03
+    min_line_frames: int = 3
+    line_agreement: float = 0.05
 
 
 def given_focal(K: np.ndarray) -> FocalEstimate:
@@ -335,7 +354,7 @@ def focal_from_learned(space) -> FocalEstimate:
 
 def estimate_focal(frames: np.ndarray, ranges: Sequence[tuple[int, int]], masks: np.ndarray | None = None,
                    tracks: Sequence | None = None, learned: Callable[[np.ndarray, np.ndarray], object] | None = None,
-                   config: FocalConfig = FocalConfig(), motion: tuple | None = None) -> FocalEstimate:
+                   config: FocalConfig = FocalConfig(), from_frames: tuple | None = None) -> FocalEstimate:
     """The video's focal length from the best source that gives one (module docstring).
 
     Args:
@@ -345,16 +364,16 @@ def estimate_focal(frames: np.ndarray, ranges: Sequence[tuple[int, int]], masks:
         tracks: per shot :class:`~multithumbs.types.PersonTracks` for the heights estimate, or None (skipped).
         learned: ``(frame_a, frame_b) -> SharedSpace`` of a loaded learned model (e.g.
             ``functools.partial(vggt_shared_space, model, cut_frame=0)``), or None.
-        motion: :func:`motion_estimate`'s answer when already computed (perception runs between the two).
+        from_frames: :func:`frames_estimate`'s answer when already computed (perception runs between the two).
     """
     frames = np.asarray(frames)
     if frames.ndim != 4 or frames.shape[-1] != 3 or frames.dtype != np.uint8:
         raise InputError(f"frames: expected (T, H, W, 3) uint8 RGB, got {frames.shape} {frames.dtype}")
     h, w = frames.shape[1:3]
-    estimate, why = motion if motion is not None else motion_estimate(frames, ranges, masks, config)
+    estimate, why = from_frames if from_frames is not None else frames_estimate(frames, ranges, masks, config)
     if estimate is not None:
         return estimate
-    reasons = [f"moving camera: {why}"]
+    reasons = [why]
     if learned is not None:
         a, b = ranges[0]
         return focal_from_learned(learned(frames[a], frames[min(a + max(1, (b - a) // 2), b - 1)]))
@@ -366,6 +385,21 @@ def estimate_focal(frames: np.ndarray, ranges: Sequence[tuple[int, int]], masks:
             return estimate
         reasons.append(f"heights: {why}")
     return FocalEstimate(float(focal_from_fov(w, 60.0)), "default", "; ".join(reasons))
+
+
+def frames_estimate(frames: np.ndarray, ranges: Sequence[tuple[int, int]], masks: np.ndarray | None = None,
+                    config: FocalConfig = FocalConfig()) -> tuple[FocalEstimate | None, str]:
+    """The focal length from the frames alone (a moving camera, else straight edges; module docstring 1-2),
+    or None and why not (``moving camera: ...; lines: ...``). Perception needs none of it."""
+    from multithumbs.scene.focal_lines import focal_from_lines  # it builds on this module's types
+
+    estimate, why_motion = motion_estimate(frames, ranges, masks, config)
+    if estimate is not None:
+        return estimate, ""
+    estimate, why_lines = focal_from_lines(frames, ranges, config)
+    if estimate is not None:
+        return estimate, ""
+    return None, f"moving camera: {why_motion}; lines: {why_lines}"
 
 
 def motion_estimate(frames: np.ndarray, ranges: Sequence[tuple[int, int]], masks: np.ndarray | None = None,

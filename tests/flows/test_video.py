@@ -88,7 +88,7 @@ def test_focal_length_withheld_is_estimated_and_keyed(prefect, tmp_path, scene_f
     store = ArtifactStore(tmp_path / "store")
     assert sorted(store.record(k)["stage"] for k in store.keys()).count("focal") == 2  # motion, then final
     focal = summary["focal"]
-    assert focal["source"] in ("moving_camera", "heights", "default") and focal["focal_px"] > 0
+    assert focal["source"] in ("moving_camera", "lines", "heights", "default") and focal["focal_px"] > 0
     assert summary["backends"]["focal length"].startswith(f"focal length {focal['focal_px']:.0f} px (")
     plain = run_video_file(src / "video.mp4", spec, load_body_model(), None, trust_pickle=True)
     assert str(plain.diagnostics["focal_source"]) == focal["source"]
