@@ -175,7 +175,7 @@ def perceive_people(store_url: str, inputs: dict[str, ArtifactRef], params: dict
 @stage_task("focal")
 def estimate_video_focal(store_url: str, inputs: dict[str, ArtifactRef], params: dict, video_path: str) -> ArtifactRef:
     """The video's focal length when nobody gave it (:mod:`multithumbs.scene.focal`). Inputs ``shots`` only:
-    the estimate from the frames alone, a moving camera or straight edges (a :class:`FocalEstimate` whose
+    the estimate from the frames alone, straight edges or a moving camera (a :class:`FocalEstimate` whose
     source is ``none`` when neither gives one); with ``motion`` (that answer) and ``tracks_<k>`` too: the final
     estimate (the frames', else people's heights, else the default). Params: ``video`` digest, ``config`` of :class:`FocalConfig`."""
     def compute():

@@ -3,7 +3,13 @@
 Real footage comes without intrinsics. :func:`estimate_focal` tries, in this order, and records which
 source gave the focal length (square pixels and the principal point at the image centre throughout):
 
-1. ``moving_camera`` (:func:`focal_from_motion`): a shot whose camera moves. Room corners tracked by KLT
+1. ``lines`` (:func:`multithumbs.scene.focal_lines.focal_from_lines`): straight edges along three orthogonal
+   directions (floor planks, wall corners, furniture, door frames) meet at vanishing points whose
+   orthogonality fixes the focal length; a few frames per shot, each refined on its segments, the median of
+   the frames that pin it down. A level camera looking square at a wall does not. First because it is the
+   more reliable where both answer: rendered at a 40 degree field of view, a sideways dolly's profile
+   accepted 381 px for 879 px, the lines 883 px (docs/RESULTS.md, session 20).
+2. ``moving_camera`` (:func:`focal_from_motion`): a shot whose camera moves. Room corners tracked by KLT
    through the shot (:func:`multithumbs.scene.tracking.klt_tracks`, people masked out), a handful of
    keyframes, then a bundle adjustment with the focal length free (scipy, Huber loss, started from several
    fields of view). The estimate is kept only when the adjustment pins it down: the starts that fit
@@ -12,10 +18,6 @@ source gave the focal length (square pixels and the principal point at the image
    rotation's), and the starts stay where they began. A camera that turns about its centre (a pan: homographies
    explain the tracks) gives ``rotating_camera``: the focal length that makes ``K^-1 H K`` a rotation. A
    static camera gives nothing.
-2. ``lines`` (:func:`multithumbs.scene.focal_lines.focal_from_lines`): straight edges along three orthogonal
-   directions (floor planks, wall corners, furniture, door frames) meet at vanishing points whose
-   orthogonality fixes the focal length; a few frames per shot, each refined on its segments, the median of
-   the frames that pin it down. A level camera looking square at a wall does not.
 3. ``learned``: a learned scene model's intrinsics (VGGT or Depth-Anything-3 through
    :mod:`multithumbs.scene.learned`), when the caller gives one (:func:`focal_from_learned`).
 4. ``heights`` (:func:`multithumbs.scene.focal_heights.focal_from_heights`): standing people as vertical poles of one height. Every
@@ -40,7 +42,7 @@ from scipy.spatial.transform import Rotation
 from multithumbs.errors import InputError
 from multithumbs.geometry import intrinsics
 
-SOURCES = ("given", "moving_camera", "rotating_camera", "lines", "learned", "heights", "default")
+SOURCES = ("given", "lines", "moving_camera", "rotating_camera", "learned", "heights", "default")
 SOURCE_WORDS = {"given": "given", "moving_camera": "moving camera", "rotating_camera": "rotating camera",
                 "lines": "vanishing points",
                 "learned": "learned model", "heights": "people's heights", "default": "default 60° guess"}
@@ -389,17 +391,17 @@ def estimate_focal(frames: np.ndarray, ranges: Sequence[tuple[int, int]], masks:
 
 def frames_estimate(frames: np.ndarray, ranges: Sequence[tuple[int, int]], masks: np.ndarray | None = None,
                     config: FocalConfig = FocalConfig()) -> tuple[FocalEstimate | None, str]:
-    """The focal length from the frames alone (a moving camera, else straight edges; module docstring 1-2),
-    or None and why not (``moving camera: ...; lines: ...``). Perception needs none of it."""
+    """The focal length from the frames alone (straight edges, else a moving camera; module docstring 1-2),
+    or None and why not (``lines: ...; moving camera: ...``). Perception needs none of it."""
     from multithumbs.scene.focal_lines import focal_from_lines  # it builds on this module's types
 
-    estimate, why_motion = motion_estimate(frames, ranges, masks, config)
-    if estimate is not None:
-        return estimate, ""
     estimate, why_lines = focal_from_lines(frames, ranges, config)
     if estimate is not None:
         return estimate, ""
-    return None, f"moving camera: {why_motion}; lines: {why_lines}"
+    estimate, why_motion = motion_estimate(frames, ranges, masks, config)
+    if estimate is not None:
+        return estimate, ""
+    return None, f"lines: {why_lines}; moving camera: {why_motion}"
 
 
 def motion_estimate(frames: np.ndarray, ranges: Sequence[tuple[int, int]], masks: np.ndarray | None = None,

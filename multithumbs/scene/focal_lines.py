@@ -1,5 +1,5 @@
 """The focal length from straight edges of three orthogonal directions (the source ``lines`` that
-:func:`multithumbs.scene.focal.estimate_focal` tries after a moving camera; its module docstring, 2).
+:func:`multithumbs.scene.focal.estimate_focal` tries first; its module docstring, 1).
 
 Rooms, sets and streets are mostly built along three orthogonal directions (a "Manhattan world"): floor
 planks, wall corners, shelves, door and window frames. Their edges meet at three vanishing points

@@ -65,7 +65,7 @@ def test_static_camera_falls_through_to_the_default():
     chosen = F.estimate_focal(frames, [(0, 5), (5, 10)])
     assert chosen.source == "default" and chosen.focal_px == pytest.approx(F.focal_from_fov(W, 60.0))
     assert "static camera (2 shots)" in chosen.detail
-    assert chosen.line().startswith("focal length 554 px (default 60° guess, moving camera: static camera")
+    assert chosen.line().startswith("focal length 554 px (default 60° guess, lines: ")
 
 
 def _pole_tracks(rng, K, pitch_deg=15.0, height=2.4, depth=(2.0, 9.0), people=4, frames=30, noise=1.0):
