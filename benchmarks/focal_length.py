@@ -44,7 +44,9 @@ def run_scene(config, runs: int) -> dict:
     start = time.perf_counter()
     lines = focal_from_lines(frames, ranges)
     lines_seconds = time.perf_counter() - start
-    from_frames = motion if motion[0] is not None else lines
+    # As frames_estimate orders them (lines first), from the two answers already in hand.
+    from_frames = lines if lines[0] is not None else motion if motion[0] is not None else \
+        (None, f"lines: {lines[1]}; moving camera: {motion[1]}")
     chosen, heights = [], []
     for seed in range(runs):
         tracks = simulate_perception(video, body, seed=seed)

@@ -367,8 +367,8 @@ def run_video_file(video_path, perception: str, body, intrinsics: np.ndarray | N
     (:func:`multithumbs.perception.load_perception`), camera trajectories and shared spaces by pycolmap with
     the people masked out, then :func:`run_video`. ``intrinsics`` ``(3, 3)``, when None, are estimated
     from the pixels (:func:`multithumbs.scene.focal.estimate_focal`: straight edges' vanishing points, else a
-    moving camera, else people's heights, else a 60° horizontal field of view); the diagnostics ``focal_px``, ``focal_source`` and ``focal_detail``
-    say which. Decodes the whole video into memory: meant for clips.
+    moving camera, else people's heights, else a 60° horizontal field of view); the diagnostics
+    ``focal_px``, ``focal_source`` and ``focal_detail`` say which. Decodes the whole video into memory: meant for clips.
     """
     from multithumbs.perception import load_perception
     from multithumbs.scene.focal import estimate_focal, frames_estimate, given_focal

@@ -146,9 +146,9 @@ def frame_focal(seg: np.ndarray, image_size: tuple[int, int], focals: np.ndarray
     rotation = Rotation.from_rotvec(sol.x[1:]).as_matrix() @ dirs.T
     sines = _angle_sines(rotation.T, np.exp(sol.x[0]), mid, unit).min(axis=0)
     inlier = sines < tol
-    J = sol.jac[inlier]
     if inlier.sum() < 8:
         return None
+    J = sol.jac[inlier]
     sigma2 = float(np.sum(sol.fun[inlier] ** 2) / max(inlier.sum() - 4, 1))
     try:
         cov = np.linalg.inv(J.T @ J) * sigma2
