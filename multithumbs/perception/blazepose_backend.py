@@ -9,9 +9,10 @@ The ``blazepose`` perception source (the default of ``multithumbs run``). For ea
 3. :func:`multithumbs.perception.body_fit.fit_bodies` fits the body model to both in the scene's
    intrinsics, batched over the shot's people and frames;
 4. each track's readings are labelled front or back by where the fitted root walks and how slowly bodies
-   turn; the frames taken for BlazePose's front/back confusion are mirrored and the shot is fitted
-   again (:mod:`.facing`); the walk is read with the camera's own motion taken out, as the floor at each
-   person's feet shows it (:mod:`.ground_motion`).
+   turn; the frames taken for BlazePose's front/back confusion are mirrored, every walker's reading is
+   turned about its trunk towards the walk, and the shot is fitted again (:mod:`.facing`); the walk is
+   read with the camera's own motion taken out, as the floor at each person's feet shows it
+   (:mod:`.ground_motion`).
 
 Masks come from BlazePose's segmentation. Appearance is described afterwards from the pixels, as for every
 source (:mod:`.appearance`). Frames where a person was not followed stay invalid.
@@ -30,7 +31,7 @@ from multithumbs.appearance import DESCRIPTOR_SIZE
 from multithumbs.errors import InputError
 from multithumbs.perception.body_fit import BodyFitConfig, FittedBodies, fit_bodies
 from multithumbs.perception.facing import (HIP_LANDMARKS, FacingConfig, facing_flips, legs_seen, mirrored,
-                                           root_velocity)
+                                           root_velocity, walk_headings)
 from multithumbs.perception.ground_motion import GroundMotionConfig, ground_flow, static_velocity
 from multithumbs.perception.joints import blazepose33_to_smpl24
 from multithumbs.perception.pose_tracking import ShotPoses, TrackerConfig, track_shot
@@ -89,18 +90,24 @@ def _fit(image: np.ndarray, world: np.ndarray, valid: np.ndarray, K: np.ndarray,
     return keypoints, fit_bodies(keypoints, joints3d, valid, K, body, config)
 
 
-def mirror_flips(poses: ShotPoses, fitted: FittedBodies, config: FacingConfig, K: np.ndarray | None = None,
-                 floor_flow: np.ndarray | None = None) -> np.ndarray:
-    """``(P, T)`` bool: frames whose reading the walk and the turns take for a back seen as a front (step 4).
-    The walk is the first fit's root motion over every valid frame, less the motion of a static point there
-    when the floor's shift ``floor_flow (P, T, 2)`` (:func:`.ground_motion.ground_flow`) and ``K`` are given."""
-    if not config.enabled or not poses.valid.any():
-        return np.zeros(poses.valid.shape, bool)
-    linked = poses.valid & legs_seen(poses.image, config.min_hip_visibility, HIP_LANDMARKS)
+def read_walk(poses: ShotPoses, fitted: FittedBodies, config: FacingConfig, K: np.ndarray | None = None,
+              floor_flow: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The walk ``(P, T, 3)`` (the first fit's root motion per frame over every valid frame, less the motion
+    of a static point there when the floor's shift ``floor_flow (P, T, 2)``,
+    :func:`.ground_motion.ground_flow`, and ``K`` are given) and the ``(P, T)`` frames it judges."""
     judged = legs_seen(poses.image, config.min_leg_visibility)
     walk = root_velocity(fitted.transl, poses.valid, config.window)
     if floor_flow is not None and K is not None:
         walk = walk - static_velocity(floor_flow, fitted.transl, poses.valid, K, config.window)
+    return walk, judged
+
+
+def mirror_flips(poses: ShotPoses, walk: np.ndarray, judged: np.ndarray, config: FacingConfig) -> np.ndarray:
+    """``(P, T)`` bool: frames whose reading the walk (:func:`read_walk`) and the turns take for a back seen
+    as a front (step 4)."""
+    if not config.enabled or not poses.valid.any():
+        return np.zeros(poses.valid.shape, bool)
+    linked = poses.valid & legs_seen(poses.image, config.min_hip_visibility, HIP_LANDMARKS)
     return facing_flips(poses.world, walk, linked, judged, config)
 
 
@@ -126,9 +133,11 @@ def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.n
         body = load_body_model()
     config = config or BlazePoseConfig().fit
     keypoints, fitted = _fit(poses.image, poses.world, poses.valid, K, body, config)
-    flips = mirror_flips(poses, fitted, facing, K, floor_flow)
-    if flips.any():
-        image, world = mirrored(poses.image, poses.world, flips)
+    walk, judged = read_walk(poses, fitted, facing, K, floor_flow)
+    flips = mirror_flips(poses, walk, judged, facing)
+    image, world = mirrored(poses.image, poses.world, flips)
+    world, turns = walk_headings(world, walk, judged & poses.valid, facing)
+    if flips.any() or turns.any():
         keypoints, fitted = _fit(image, world, poses.valid, K, body, config)
     return PersonTracks(
         shot_index=shot_index, start_frame=start_frame, track_ids=poses.track_ids,

@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from multithumbs.perception.facing import (BLAZEPOSE_MIRROR, FacingConfig, body_forward, facing_flips, legs_seen,
-                                           mirrored, reading_forward, root_velocity)
+                                           mirrored, reading_forward, root_velocity, walk_headings)
 from multithumbs.perception.joints import BLAZEPOSE33_TO_SMPL24
 from multithumbs.perception.pose_tracking import ShotPoses
 
@@ -159,3 +159,70 @@ def test_a_back_read_as_a_front_is_mirrored_when_the_person_walks(body, walking)
     else:         # nothing says which reading is right: the landmarks are kept
         assert not left_of_right.any() and (facing_z < -0.5).all()
         np.testing.assert_array_equal(tracks.keypoints2d, kept.keypoints2d)
+
+
+def _yawed(world: np.ndarray, degrees: float) -> np.ndarray:
+    """Landmarks ``(..., 33, 3)`` turned about the camera's vertical (+y down) through the origin."""
+    a = np.radians(degrees)
+    turn = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+    return world @ turn.T
+
+
+def _signed_yaw(forward: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Degrees from ``direction`` to ``forward`` about the camera's vertical, in the x-z plane."""
+    return np.degrees(np.arctan2(forward[..., 0], forward[..., 2]) - np.arctan2(direction[..., 0], direction[..., 2]))
+
+
+def test_a_walkers_reading_is_turned_towards_the_walk_by_the_two_precisions():
+    config = FacingConfig()
+    t = 6
+    world = _yawed(_world_facing(np.ones(t)), 60.0)[None]      # read 60° off a walk away from the camera
+    velocity = np.tile([0.0, 0.0, config.full_speed], (1, t, 1))
+    velocity[0, 3:] *= 0.5                                     # half speed: the walk's spread doubles
+    turned, turn = walk_headings(world, velocity, np.ones((1, t), bool), config)
+    walk_p, read_p = 1 / config.walk_sigma_deg ** 2, 1 / config.reading_sigma_deg ** 2
+    slow_p = 1 / (2 * config.walk_sigma_deg) ** 2
+    expected = np.r_[[60 * read_p / (walk_p + read_p)] * 3, [60 * read_p / (slow_p + read_p)] * 3]
+    np.testing.assert_allclose(_signed_yaw(reading_forward(turned), velocity)[0], expected, atol=1e-9)
+    np.testing.assert_allclose(np.degrees(turn[0]), 60 - expected, atol=1e-9)   # about the trunk's up, -y
+    # A rigid turn about the trunk through the mid-hip: shapes and the hips' centre are kept.
+    hips = 0.5 * (turned[..., 23, :] + turned[..., 24, :])
+    np.testing.assert_allclose(hips, 0.5 * (world[..., 23, :] + world[..., 24, :]), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(turned[..., 11, :] - turned[..., 24, :], axis=-1),
+                               np.linalg.norm(world[..., 11, :] - world[..., 24, :], axis=-1), atol=1e-12)
+
+
+def test_frames_the_walk_says_nothing_of_keep_their_reading():
+    t = 5
+    world = _yawed(_world_facing(np.ones(t)), 40.0)[None]
+    away = np.tile([0.0, 0.0, 0.03], (1, t, 1))
+    judged = np.ones((1, t), bool)
+    judged[0, 1] = False                                        # legs not seen there
+    velocity = away.copy()
+    velocity[0, 2] = np.nan                                     # too few valid frames near it
+    velocity[0, 3] = [0.0, 0.0, 0.004]                          # too slow to read
+    velocity[0, 4] = [0.0, 0.0, -0.03]                          # walking against the reading: left to the labels
+    turned, turn = walk_headings(world, velocity, judged)
+    np.testing.assert_array_equal(turned[0, 1:], world[0, 1:])
+    assert turn[0, 0] != 0 and not turn[0, 1:].any()
+    off, none = walk_headings(world, away, np.ones((1, t), bool), FacingConfig(heading=False))
+    np.testing.assert_array_equal(off, world)
+    assert not none.any()
+
+
+def test_an_oblique_reading_of_a_walker_is_fitted_closer_to_their_facing(body):
+    from multithumbs.perception.blazepose_backend import poses_to_tracks
+
+    # Truth: seen from behind, walking away. The reading's 2D is exact, its 3D turned 50° about the
+    # vertical (BlazePose's yaw of a back seen obliquely, docs/RESULTS.md session 21).
+    transl = np.stack([np.zeros(16), np.full(16, 0.3), 4.0 + 0.04 * np.arange(16)], -1)
+    reading = _reading(body, UPRIGHT_FACING_AWAY, transl)
+    reading.world[...] = _yawed(reading.world, 50.0)
+    errors = {}
+    for heading in (True, False):
+        tracks = poses_to_tracks(reading, 0, 0, K, (360, 640), body, facing=FacingConfig(heading=heading))
+        with torch.no_grad():
+            joints = body.joints(tracks.global_orient, tracks.body_pose, tracks.betas, tracks.transl).double().numpy()
+        errors[heading] = np.abs(_signed_yaw(body_forward(joints)[0], np.array([0.0, 0.0, 1.0])))
+    assert np.median(errors[False]) > 20                        # the fit follows the reading's 3D
+    assert np.median(errors[True]) < 0.5 * np.median(errors[False])
