@@ -39,6 +39,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from multithumbs.geometry import axis_angle_to_matrix
+
 BLAZEPOSE_MIRROR: tuple[int, ...] = (0, 4, 5, 6, 1, 2, 3, 8, 7, 10, 9, 12, 11, 14, 13, 16, 15, 18, 17, 20, 19, 22,
                                      21, 24, 23, 26, 25, 28, 27, 30, 29, 32, 31)
 """BlazePose's 33 landmarks with left and right exchanged (nose 0; eyes 1-3 / 4-6; ears 7 / 8; mouth
@@ -130,12 +132,17 @@ def root_velocity(transl: np.ndarray, valid: np.ndarray, window: int) -> np.ndar
     return velocity
 
 
+def trunk_up(world: np.ndarray) -> np.ndarray:
+    """Up the trunk ``(..., 3)`` of BlazePose world landmarks ``(..., 33, 3)``: mid-shoulders minus mid-hips."""
+    world = np.asarray(world, dtype=np.float64)
+    return 0.5 * (world[..., 11, :] + world[..., 12, :] - world[..., 23, :] - world[..., 24, :])
+
+
 def reading_forward(world: np.ndarray) -> np.ndarray:
     """Unit forward ``(..., 3)`` of BlazePose world landmarks ``(..., 33, 3)``: across the hips (left minus
-    right) crossed with up the trunk (mid-shoulders minus mid-hips), as :func:`body_forward` for SMPL."""
+    right) crossed with up the trunk (:func:`trunk_up`), as :func:`body_forward` for SMPL."""
     world = np.asarray(world, dtype=np.float64)
-    up = 0.5 * (world[..., 11, :] + world[..., 12, :] - world[..., 23, :] - world[..., 24, :])
-    forward = np.cross(world[..., 23, :] - world[..., 24, :], up)
+    forward = np.cross(world[..., 23, :] - world[..., 24, :], trunk_up(world))
     return forward / np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-12)
 
 
@@ -209,7 +216,7 @@ def walk_headings(world: np.ndarray, velocity: np.ndarray, judged: np.ndarray,
     turn = np.zeros(world.shape[:2])
     if not (config.enabled and config.heading):
         return world.copy(), turn
-    up = 0.5 * (world[..., 11, :] + world[..., 12, :] - world[..., 23, :] - world[..., 24, :])
+    up = trunk_up(world)
     up = up / np.maximum(np.linalg.norm(up, axis=-1, keepdims=True), 1e-12)
     forward = reading_forward(world)
     motion = np.where(np.isfinite(velocity), velocity, 0.0)
@@ -222,18 +229,11 @@ def walk_headings(world: np.ndarray, velocity: np.ndarray, judged: np.ndarray,
     use = (np.asarray(judged, bool) & np.isfinite(velocity).all(-1) & (speed > config.min_speed)
            & (np.abs(angle) <= 0.5 * np.pi))
     turn = np.where(use, angle * walk_precision / (walk_precision + reading_precision), 0.0)
-    return _turned(world, up, turn), turn
-
-
-def _turned(world: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Hip-centred landmarks ``(P, T, 33, 3)`` rotated by ``angle (P, T)`` about unit ``axis (P, T, 3)``
-    (Rodrigues), through the mid-hip."""
+    # A rigid turn about the trunk through the mid-hip; untouched frames keep their bytes.
     centre = 0.5 * (world[..., 23:24, :] + world[..., 24:25, :])
-    x = world - centre
-    k = axis[..., None, :]
-    cos, sin = np.cos(angle)[..., None, None], np.sin(angle)[..., None, None]
-    rotated = x * cos + np.cross(k, x) * sin + k * (k * x).sum(-1, keepdims=True) * (1.0 - cos)
-    return rotated + centre
+    rotation = axis_angle_to_matrix(up * turn[..., None])
+    turned = centre + np.einsum("ptij,ptkj->ptki", rotation, world - centre)
+    return np.where((turn != 0)[..., None, None], turned, world), turn
 
 
 LEG_LANDMARKS: tuple[int, ...] = (23, 24, 25, 26, 27, 28)
@@ -248,5 +248,6 @@ def legs_seen(image: np.ndarray, min_visibility: float, landmarks: tuple[int, ..
     return np.asarray(image)[..., list(landmarks), 3].min(-1) >= min_visibility
 
 
-__all__ = ["LEG_LANDMARKS", "HIP_LANDMARKS", "legs_seen", "reading_forward", "BLAZEPOSE_MIRROR", "FacingConfig", "mirrored", "mirror_world", "body_forward", "root_velocity", "facing_flips",
+__all__ = ["LEG_LANDMARKS", "HIP_LANDMARKS", "legs_seen", "trunk_up", "reading_forward", "BLAZEPOSE_MIRROR",
+           "FacingConfig", "mirrored", "mirror_world", "body_forward", "root_velocity", "facing_flips",
            "walk_headings"]
