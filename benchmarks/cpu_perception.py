@@ -44,14 +44,15 @@ def padded_landmark_boxes(boxes: np.ndarray, image_size: tuple[int, int]) -> np.
 
 
 def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool = True,
-                detector: str = "nanodet") -> dict:
+                detector: str = "nanodet", head: bool = True) -> dict:
     import torch
 
     from multithumbs.body.model import load_body_model
     from multithumbs.metrics.identity import count_id_switches
     from multithumbs.metrics.perception import detection_counts, eligible_people, match_people, pck, silhouette_boxes
     from multithumbs.metrics.pose import mpjpe, pa_mpjpe
-    from multithumbs.perception.blazepose_backend import BlazePoseConfig, poses_to_tracks, shot_floor_flow
+    from multithumbs.perception.blazepose_backend import (BlazePoseConfig, poses_to_tracks, shot_face_evidence,
+                                                          shot_floor_flow)
     from multithumbs.perception.blazepose_models import BlazePose
     from multithumbs.perception.joints import BLAZEPOSE_SMPL_JOINTS
     from multithumbs.perception.oracle import oracle_tracks
@@ -71,6 +72,8 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
         config = dataclasses.replace(config, facing=dataclasses.replace(config.facing, enabled=False))
     if not ground:
         config = dataclasses.replace(config, ground=dataclasses.replace(config.ground, enabled=False))
+    if not head:
+        config = dataclasses.replace(config, head=dataclasses.replace(config.head, enabled=False))
     seconds = {"landmarks": 0.0, "detection": 0.0, "fitting": 0.0}
     proposals = person_proposals(config, seconds=seconds)
     tallies = np.zeros(4, np.int64)
@@ -92,8 +95,9 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
         if fit:
             start = time.perf_counter()
             floor_flow = shot_floor_flow(video.frames[a:b], poses, config)
+            face = shot_face_evidence(video.frames[a:b], poses, config)
             tracks = poses_to_tracks(poses, true_tr.shot_index, a, K, (h, w), body, config.fit, config.facing,
-                                     floor_flow)
+                                     floor_flow, face)
             seconds["fitting"] += time.perf_counter() - start
             pred_kp = tracks.keypoints2d
             with torch.no_grad():
@@ -150,13 +154,15 @@ def main() -> None:
                         help="keep BlazePose's readings as they are (no mirroring by the walk)")
     parser.add_argument("--no-ground", action="store_true",
                         help="read the walk in the camera frame (the camera's motion not taken out by the floor)")
+    parser.add_argument("--no-head", action="store_true",
+                        help="label front and back without the head's colours (multithumbs/perception/head_colour.py)")
     parser.add_argument("--detector", default="nanodet", choices=("nanodet", "hog"),
                         help="where the tracker's person proposals come from")
     parser.add_argument("--json", default=None, help="write the per-scene results here")
     args = parser.parse_args()
     names = args.scenes.split(",") if args.scenes else [s.name for s in suite("standard")]
     runs = [[score_scene(n, fit=not args.no_fit, facing=not args.no_facing, ground=not args.no_ground,
-                         detector=args.detector) for n in names] for _ in range(args.runs)]
+                         detector=args.detector, head=not args.no_head) for n in names] for _ in range(args.runs)]
     rows = runs[0]
     keys = ("recall", "precision", "switches", "pck", "mpjpe", "pa_mpjpe", "detection_s_per_frame",
             "landmark_s_per_frame", "fit_s_per_frame")

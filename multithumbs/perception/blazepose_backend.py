@@ -8,11 +8,11 @@ The ``blazepose`` perception source (the default of ``multithumbs run``). For ea
    world landmarks the matching 3D joints (:func:`multithumbs.perception.joints.blazepose33_to_smpl24`);
 3. :func:`multithumbs.perception.body_fit.fit_bodies` fits the body model to both in the scene's
    intrinsics, batched over the shot's people and frames;
-4. each track's readings are labelled front or back by where the fitted root walks and how slowly bodies
-   turn; the frames taken for BlazePose's front/back confusion are mirrored, every walker's reading is
-   turned about its trunk towards the walk, and the shot is fitted again (:mod:`.facing`); the walk is
-   read with the camera's own motion taken out, as the floor at each person's feet shows it
-   (:mod:`.ground_motion`).
+4. each track's readings are labelled front or back by where the fitted root walks, whether the head
+   shows a face or hair (:mod:`.head_colour`) and how slowly bodies turn; the frames taken for
+   BlazePose's front/back confusion are mirrored, every walker's reading is turned about its trunk
+   towards the walk, and the shot is fitted again (:mod:`.facing`); the walk is read with the camera's
+   own motion taken out, as the floor at each person's feet shows it (:mod:`.ground_motion`).
 
 Masks come from BlazePose's segmentation. Appearance is described afterwards from the pixels, as for every
 source (:mod:`.appearance`). Frames where a person was not followed stay invalid.
@@ -33,6 +33,7 @@ from multithumbs.perception.body_fit import BodyFitConfig, FittedBodies, fit_bod
 from multithumbs.perception.facing import (HIP_LANDMARKS, FacingConfig, facing_flips, legs_seen, mirrored,
                                            root_velocity, walk_headings)
 from multithumbs.perception.ground_motion import GroundMotionConfig, ground_flow, static_velocity
+from multithumbs.perception.head_colour import HeadColourConfig, face_evidence, head_samples
 from multithumbs.perception.joints import blazepose33_to_smpl24
 from multithumbs.perception.pose_tracking import ShotPoses, TrackerConfig, track_shot
 from multithumbs.types import PersonTracks, Shots
@@ -51,6 +52,8 @@ class BlazePoseConfig:
     """When a reading is taken for a back seen as a front and mirrored (PCK 0.841 -> see docs/RESULTS.md)."""
     ground: GroundMotionConfig = field(default_factory=GroundMotionConfig)
     """How the camera's own motion is read from the floor at each person's feet for the facing's walk."""
+    head: HeadColourConfig = field(default_factory=HeadColourConfig)
+    """How the facing reads a face or the back of a head from the head's colours (:mod:`.head_colour`)."""
     num_threads: int = 2
     """Threads of each tflite interpreter."""
     person_detector: str = "nanodet"
@@ -102,13 +105,14 @@ def read_walk(poses: ShotPoses, fitted: FittedBodies, config: FacingConfig, K: n
     return walk, judged
 
 
-def mirror_flips(poses: ShotPoses, walk: np.ndarray, judged: np.ndarray, config: FacingConfig) -> np.ndarray:
-    """``(P, T)`` bool: frames whose reading the walk (:func:`read_walk`) and the turns take for a back seen
-    as a front (step 4)."""
+def mirror_flips(poses: ShotPoses, walk: np.ndarray, judged: np.ndarray, config: FacingConfig,
+                 face: np.ndarray | None = None) -> np.ndarray:
+    """``(P, T)`` bool: frames whose reading the walk (:func:`read_walk`), the head's colours ``face``
+    (:func:`shot_face_evidence`) and the turns take for a back seen as a front (step 4)."""
     if not config.enabled or not poses.valid.any():
         return np.zeros(poses.valid.shape, bool)
     linked = poses.valid & legs_seen(poses.image, config.min_hip_visibility, HIP_LANDMARKS)
-    return facing_flips(poses.world, walk, linked, judged, config)
+    return facing_flips(poses.world, walk, linked, judged, config, face)
 
 
 def shot_floor_flow(frames, poses: ShotPoses, config: BlazePoseConfig) -> np.ndarray | None:
@@ -119,12 +123,22 @@ def shot_floor_flow(frames, poses: ShotPoses, config: BlazePoseConfig) -> np.nda
     return ground_flow(frames, poses.image, poses.boxes, poses.masks, poses.valid, config.ground)
 
 
+def shot_face_evidence(frames, poses: ShotPoses, config: BlazePoseConfig) -> np.ndarray | None:
+    """``(P, T)`` in [-1, 1]: where each person's head shows a face (+1) or its back (-1) in a shot's frames
+    (:func:`.head_colour.face_evidence`), or None when the facing labelling or the cue is off."""
+    if not (config.facing.enabled and config.head.enabled):
+        return None
+    return face_evidence(head_samples(frames, poses.image, poses.masks, poses.valid, config.head), config.head)
+
+
 def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.ndarray, image_size: tuple[int, int],
                     body=None, config: BodyFitConfig | None = None,
-                    facing: FacingConfig = FacingConfig(), floor_flow: np.ndarray | None = None) -> PersonTracks:
+                    facing: FacingConfig = FacingConfig(), floor_flow: np.ndarray | None = None,
+                    face: np.ndarray | None = None) -> PersonTracks:
     """One shot's :class:`PersonTracks` from the people BlazePose followed (module docstring, steps 2–4);
     ``floor_flow (P, T, 2)``, when given, is the floor's shift at each person's feet
-    (:func:`.ground_motion.ground_flow`), which takes the camera's motion out of the walk."""
+    (:func:`.ground_motion.ground_flow`), which takes the camera's motion out of the walk; ``face (P, T)``,
+    when given, is where each head shows a face or its back (:func:`shot_face_evidence`)."""
     p, t = poses.valid.shape
     h, w = image_size
     if body is None:
@@ -134,7 +148,7 @@ def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.n
     config = config or BlazePoseConfig().fit
     keypoints, fitted = _fit(poses.image, poses.world, poses.valid, K, body, config)
     walk, judged = read_walk(poses, fitted, facing, K, floor_flow)
-    flips = mirror_flips(poses, walk, judged, facing)
+    flips = mirror_flips(poses, walk, judged, facing, face)
     image, world = mirrored(poses.image, poses.world, flips)
     world, turns = walk_headings(world, walk, judged & poses.valid, facing)
     if flips.any() or turns.any():
@@ -213,7 +227,8 @@ def blazepose_tracks(frames: Iterable[np.ndarray], shots: Shots, K: np.ndarray, 
         calls["landmark"] += poses.landmark_calls
         start = time.perf_counter()
         floor_flow = shot_floor_flow(shot_frames, poses, config)
-        out.append(poses_to_tracks(poses, k, a, K, image_size, body, config.fit, config.facing, floor_flow))
+        face = shot_face_evidence(shot_frames, poses, config)
+        out.append(poses_to_tracks(poses, k, a, K, image_size, body, config.fit, config.facing, floor_flow, face))
         seconds["fitting"] += time.perf_counter() - start
     return out, StageSeconds(seconds["landmarks"], seconds["detection"], seconds["fitting"], calls["detector"],
                              calls["landmark"], shots.num_frames)
@@ -230,5 +245,5 @@ def run_blazepose(video: str | Path, shots: Shots, K: np.ndarray, body=None,
     return tracks
 
 
-__all__ = ["BlazePoseConfig", "StageSeconds", "shot_floor_flow", "poses_to_tracks", "blazepose_tracks",
-           "run_blazepose"]
+__all__ = ["BlazePoseConfig", "StageSeconds", "shot_floor_flow", "shot_face_evidence", "poses_to_tracks",
+           "blazepose_tracks", "run_blazepose"]

@@ -89,6 +89,21 @@ def test_the_walk_labels_frames_and_turns_carry_it_to_frames_it_cannot_judge():
     assert not facing_flips(world, velocity, linked, judged, FacingConfig(enabled=False)).any()
 
 
+def test_a_standing_persons_labels_follow_the_head_where_no_walk_says_anything():
+    # Truth: a person standing with their back to the camera; BlazePose reads every frame as facing it. The
+    # head's colours say "back" in most frames, "face" in two (an oblique cheek) and nothing in three.
+    t = 12
+    world = _world_facing(-np.ones(t))[None]
+    still, everywhere = np.zeros((1, t, 3)), np.ones((1, t), bool)
+    face = -np.ones((1, t))
+    face[0, [3, 8]] = 1.0
+    face[0, [5, 6, 7]] = 0.0
+    np.testing.assert_array_equal(facing_flips(world, still, everywhere, everywhere, face=face), everywhere)
+    assert not facing_flips(world, still, everywhere, everywhere, face=-face).any()
+    assert not facing_flips(world, still, everywhere, everywhere).any()            # no cue: the reading stays
+    assert not facing_flips(world, still, everywhere, everywhere, FacingConfig(face_weight=0.0), face).any()
+
+
 def test_frames_not_linked_keep_their_reading_and_unjudged_frames_give_no_evidence():
     t = 10
     world = _world_facing(-np.ones(t))[None]          # every frame read as facing the camera
