@@ -1,4 +1,5 @@
-"""The backward fill at the end of a shot: each track followed back from where it was found.
+"""The backward fill at the end of a shot: each track followed back from where it was found, and the
+first frames of each run read again from the frames after them.
 
 The detector is anchored on the face, so a person who walks in with their back to the camera, or who is
 hidden behind someone, is found frames after they could have been followed: the forward pass of
@@ -11,6 +12,14 @@ forward pass does not learn from such readings either), or that lands on or near
 followed in that frame (box overlap ≥ ``revive_iou``, or :func:`.pose_checks.same_box`, or mostly their
 pixels). A filled frame's mask is its segmentation in its square, less the pixels
 the frame's other people already own (their masks were settled with the frame).
+
+Before that, :func:`reread_starts` reads the first ``reread`` frames of every run again, backwards, each in
+the square of the frame after it. A run's first square comes from a detection (a face-anchored box, or a
+person box): the landmarks read in it were often a body seen narrow, in profile, until the square
+followed the person a few frames later. Fitted bodies then started 40-130° off the true facing and turned
+back over 5-8 frames (the fit's smoothness makes a ramp of them); the first two frames are what W-MPJPE
+aligns on (``docs/RESULTS.md``, session 22). A reading that is not a plausible pose, or lands on someone
+else, ends the re-reading of that run and keeps what was read forwards; masks stay as settled.
 """
 
 from __future__ import annotations
@@ -69,6 +78,24 @@ def _fill_before(track: _Track, start: int, tracks: list[_Track], frames: Sequen
     return calls
 
 
+def reread_starts(tracks: list[_Track], frames: Sequence[np.ndarray], model, config: TrackerConfig) -> int:
+    """Read the first ``config.reread`` frames of every run of every track again, backwards from the frame
+    after them (module docstring). Returns the landmark calls made."""
+    calls = 0
+    for track in sorted(tracks, key=lambda tr: tr.track_id):
+        for start in [t for t in sorted(track.frames) if t - 1 not in track.frames]:
+            for t in range(start + config.reread - 1, start - 1, -1):
+                if t + 1 not in track.frames or t not in track.frames:
+                    continue  # a run shorter than the re-read: its last frame keeps its reading
+                found = model.landmarks(frames[t], backward_roi(track, t))
+                calls += 1
+                others = [tr for tr in tracks if tr is not track and t in tr.frames]
+                if not plausible(found, config) or _near_someone(landmark_box(found), others, t, config):
+                    break
+                track.frames[t] = dataclasses.replace(found, segmentation=NO_SEGMENTATION)
+    return calls
+
+
 def backfill(tracks: list[_Track], frames: Sequence[np.ndarray], model, config: TrackerConfig) -> int:
     """Follow every run of every track back from where it starts (module docstring), in order of the
     tracks' ids and of the runs. Returns the landmark calls made."""
@@ -82,4 +109,4 @@ def backfill(tracks: list[_Track], frames: Sequence[np.ndarray], model, config: 
     return calls
 
 
-__all__ = ["backfill", "backward_roi"]
+__all__ = ["backfill", "backward_roi", "reread_starts"]

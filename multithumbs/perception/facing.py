@@ -17,7 +17,8 @@ is the cheapest path through them (Viterbi, :func:`facing_flips`):
   or walking across the view), and BlazePose's frame-by-frame flips are undone as a run;
 - heads show their faces: where a head's middle is unlike its crown it is a face, where alike the back
   of a head (:mod:`.head_colour`, which also speaks for a person standing still); a reading facing
-  the camera gains where the head shows a face and costs where it shows hair;
+  the camera gains where the head shows a face and costs where it shows hair (whole bodies only, as
+  for the walk: the backend passes the cue for judged frames);
 - BlazePose's own reading is kept where nothing else decides (``mirror_cost``).
 Judging the reading itself, not the body fitted to all readings, matters: the fit's smoothness blends
 flipped and unflipped frames into a slow turn that faces neither way (s09's track starts were 135, 99,

@@ -22,7 +22,8 @@ whenever someone was lost), so people who enter, or who come back after an occlu
    taken;
 4. masks: each person's segmentation on the frame, restricted to the square it came from; a pixel
    goes to the person most sure of it, at probability ≥ 0.5 (:mod:`.shot_assembly`);
-5. once the shot is read, each run of each track is followed back from where it was found
+5. once the shot is read, the first frames of each run of each track are read again backwards, in the
+   squares the following frames give, and each run is followed back from where it was found
    (:mod:`.backfill`): people the face-anchored detector found late are carried back to where the
    landmark model first sees them; then a track that starts a few frames after another ends, where
    that one was heading, continues it (:mod:`.track_stitch`).
@@ -49,7 +50,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from multithumbs.perception import blazepose as bp
-from multithumbs.perception.backfill import backfill
+from multithumbs.perception.backfill import backfill, reread_starts
 from multithumbs.perception.person_proposals import hog_boxes, proposal_roi
 from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity, moved_square, plausible, same_person
 from multithumbs.perception.shot_assembly import ShotPoses, assemble, drop_short_runs, landmark_box, settle_frame
@@ -201,8 +202,8 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
         people: optional ``callable(frame) -> (N, 5)`` person boxes and scores, best first, used as the
             proposals instead of HOG's (a loaded :class:`~multithumbs.perception.nanodet.NanoDet`'s ``people``).
     """
-    if config.backfill and not isinstance(frames, Sequence | np.ndarray):
-        frames = list(frames)  # the backward fill reads them again
+    if (config.backfill or config.reread) and not isinstance(frames, Sequence | np.ndarray):
+        frames = list(frames)  # the backward fill and the re-read read them again
     tracks: list[_Track] = []
     detector_calls = landmark_calls = 0
     image_size = None
@@ -253,7 +254,7 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
         settle_frame(tracks, t, config)
         if progress:
             progress(t + 1, None)
-    landmark_calls += backfill(tracks, frames, model, config)
+    landmark_calls += reread_starts(tracks, frames, model, config) + backfill(tracks, frames, model, config)
     tracks = stitch_fragments(tracks, config)
     for tr in tracks:
         drop_short_runs(tr, config.min_run)

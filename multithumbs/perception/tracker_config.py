@@ -118,3 +118,7 @@ class TrackerConfig:
     backfill: int = 120
     """Frames each run of a track may be followed back from where it was found, once the shot is read
     (:mod:`.backfill`; 0: off)."""
+    reread: int = 4
+    """First frames of each run of a track read again, backwards from the frame after them, once the shot
+    is read (:func:`.backfill.reread_starts`; 0: off): a run's first squares come from a detection, and
+    the landmarks read in them are often a narrow, half-turned body until the square follows the person."""

@@ -155,3 +155,38 @@ def test_a_split_of_a_person_read_poorly_for_a_while_is_merged_back():
     # track's model learnt the smeared red, so the clean red splits it again)
     apart = track_shot(frames, SmearingModel(), dataclasses.replace(config, merge_splits=False))
     assert len({identity(apart, frames, 0, t) for t in range(n)}) == 3
+
+
+class SloppyDetector(ColourModel):
+    """:class:`ColourModel` whose detections sit ``offset`` px right of the person (a detector's loose box)
+    and whose readings keep, in their world landmarks, the centre of the square they were read in."""
+
+    offset = 15.0
+
+    def detect(self, image, min_score=0.5):
+        return [dataclasses.replace(d, keypoints=d.keypoints + [self.offset, 0.0], face_box=d.face_box + self.offset)
+                for d in super().detect(image, min_score)]
+
+    def landmarks(self, image, roi):
+        found = super().landmarks(image, roi)
+        return dataclasses.replace(found, world=np.tile([*roi.centre, roi.size], (33, 1)))
+
+
+def test_a_runs_first_frames_are_read_again_in_the_squares_of_the_frames_after_them():
+    from tests.perception.test_pose_tracking import render as render_boxes
+
+    n, speed = 12, 4.0
+    frames = render_boxes({0: [(100 + speed * t, 120) for t in range(n)]}, n)
+    centre = [np.array([100 + speed * t, 60 + 0.55 * 120]) for t in range(n)]   # where the reading centres
+    plain = track_shot(frames, SloppyDetector(), TrackerConfig(reread=0, backfill=0))
+    again = track_shot(frames, SloppyDetector(), TrackerConfig(reread=3, backfill=0))
+    assert plain.track_ids.size == again.track_ids.size == 1
+
+    def square_error(poses, t):
+        return float(np.hypot(*(poses.world[0, t, 0, :2] - centre[t])))
+
+    assert square_error(plain, 0) > 10                     # read in the detection's loose square
+    assert all(square_error(again, t) < 6 for t in range(3))
+    np.testing.assert_array_equal(plain.world[0, 3:], again.world[0, 3:])   # later frames as read forwards
+    assert again.landmark_calls == plain.landmark_calls + 3
+    np.testing.assert_array_equal(plain.masks, again.masks)                 # masks stay as settled

@@ -241,3 +241,20 @@ def test_an_oblique_reading_of_a_walker_is_fitted_closer_to_their_facing(body):
         errors[heading] = np.abs(_signed_yaw(body_forward(joints)[0], np.array([0.0, 0.0, 1.0])))
     assert np.median(errors[False]) > 20                        # the fit follows the reading's 3D
     assert np.median(errors[True]) < 0.5 * np.median(errors[False])
+
+
+@pytest.mark.parametrize("whole_body", [True, False])
+def test_a_standing_back_read_as_a_front_follows_the_head_on_whole_bodies_only(body, whole_body):
+    from multithumbs.perception.blazepose_backend import poses_to_tracks
+
+    # As above, standing: the head's colours say "back of a head" in every frame. They decide where the
+    # whole body is seen; on a close-up (legs out of view) the reading is kept, as the walk's would be.
+    transl = np.stack([np.zeros(16), np.full(16, 0.3), np.full(16, 4.0)], -1)
+    reading = _reading(body, UPRIGHT_FACING_CAMERA, transl)
+    if not whole_body:
+        reading.image[..., 25:29, 3] = 0.2
+    tracks = poses_to_tracks(reading, 0, 0, K, (360, 640), body, face=-np.ones((1, 16)))
+    with torch.no_grad():
+        joints = body.joints(tracks.global_orient, tracks.body_pose, tracks.betas, tracks.transl).double().numpy()
+    facing_z = body_forward(joints)[0, :, 2]
+    assert (facing_z > 0.5).all() if whole_body else (facing_z < -0.5).all()
