@@ -29,7 +29,9 @@ STAGE_VERSIONS = {"simulate_inputs": 3, "ground_truth": 1, "shots": 2, "percepti
                   "focal": 3, "align": 6, "propagate": 4, "reid": 2, "post": 3, "evaluate": 1}
 """Bump a stage's version when its code changes its output: its key and every key after it change.
 (Torch stages bumped together when every stage came to compute with one thread, :func:`compute_fixed`.)
-``evaluate`` (:mod:`tasks.evaluation`) is the metrics: bump it when a metric's code or default changes."""
+``evaluate`` (:mod:`tasks.evaluation`) is the metrics: bump it when a metric's code or default changes.
+Never reuse a number: caches keyed by it may hold other code's output (perception 24 was an A/B run of
+stage 23 with ``TrackerConfig.reread=0``; the next perception version is 25)."""
 
 
 @functools.lru_cache(maxsize=8)
