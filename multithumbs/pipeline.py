@@ -6,7 +6,7 @@ tasks (``tasks/``) can cache them one by one:
 1. :func:`boundary_people` — the people of the two frames around each cut, posed once;
 2. :func:`multithumbs.method.align.align_boundary` — scale and three-stage alignment per cut;
 3. :func:`multithumbs.world_placement.propagate` — every camera and every track's root into one world frame, cut by cut;
-4. :func:`reidentify` — global identities across cuts;
+4. :func:`reidentify` — global identities: fragments of one person linked within shots, then across cuts;
 5. :func:`assemble` and :func:`multithumbs.method.post.post_process` — world tracks and their refinement;
 6. :func:`to_world_result`.
 
@@ -20,7 +20,6 @@ trackers such as PHALP link them across a cut: appearance and pose, no location)
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -34,7 +33,7 @@ from multithumbs.method.align import AlignedBoundary, BoundaryPeople, align_boun
 from multithumbs.method.config import (VARIANTS, AlignConfig, MethodConfig, PostConfig, ReidConfig,  # noqa: F401
                                        variant_config)
 from multithumbs.method.post import PostInput, post_process
-from multithumbs.method.reid import Candidates, Matching, match_people
+from multithumbs.method.identities import Identities, link_fragments, reidentify  # noqa: F401  (re-exported)
 from multithumbs.world_placement import Placement, propagate
 from multithumbs.types import CameraTrajectory, PersonTracks, SharedSpace, Shots, WorldResult
 
@@ -106,98 +105,7 @@ def boundary_people(before: PersonTracks, after: PersonTracks, body, window: int
 
 
 # ----------------------------------------------------------------------------------------------------
-# 3. Propagation
-
-
-@dataclass(frozen=True)
-class Identities:
-    """Global identities.
-
-    Attributes:
-        global_ids: per shot ``(P_s,)`` int global id of every track.
-        matchings: per cut, the re-ID outcome (before side: candidates listed in ``before_ids``).
-        before_ids: per cut ``(N,)`` global ids of the candidates before the cut.
-        matched_at_cut: ``(G, C)`` bool, person matched across cut ``c``.
-    """
-
-    global_ids: tuple[np.ndarray, ...]
-    matchings: tuple[Matching, ...]
-    before_ids: tuple[np.ndarray, ...]
-    matched_at_cut: np.ndarray
-
-    @property
-    def num_people(self) -> int:
-        return int(max((g.max() + 1 for g in self.global_ids if len(g)), default=0))
-
-
-def _candidate(tr: PersonTracks, placement_pelvis: np.ndarray, i: int, frame: int, window: np.ndarray,
-               min_conf: float) -> tuple:
-    """``(root, appearance, body_pose, joint_visible, video_frame)`` of track ``i`` at shot-local ``frame``."""
-    appearance = mean_descriptor(tr.appearance[i, window], tr.appearance_valid[i, window])
-    visible = tr.keypoints2d[i, frame, 1:24, 2] > min_conf if tr.keypoints2d.shape[2] >= 24 else np.ones(23, bool)
-    return placement_pelvis[i, frame], appearance, tr.body_pose[i, frame], visible, tr.start_frame + frame
-
-
-def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: ReidConfig,
-               appearance_window: int = 15, fps: float = 30.0) -> Identities:
-    """Assign global ids cut by cut; people absent on one side keep their ids for later shots."""
-    n_shots = len(tracks)
-    global_ids = [np.full(tr.num_people, -1) for tr in tracks]
-    global_ids[0] = np.arange(tracks[0].num_people)
-    next_id = tracks[0].num_people
-    last_state: dict[int, tuple] = {}  # gid -> candidate tuple at its last appearance
-    last_shot: dict[int, int] = {}     # gid -> the shot it was last seen in
-    reliable = placement.distance_reliable if placement.distance_reliable is not None \
-        else np.ones(n_shots - 1, bool)
-    matchings, before_ids = [], []
-    matched = []
-    for k in range(n_shots - 1):
-        tr, nxt = tracks[k], tracks[k + 1]
-        for i in range(tr.num_people):
-            frames = np.nonzero(tr.valid[i])[0]
-            if len(frames):
-                last = frames[-1]
-                last_state[int(global_ids[k][i])] = _candidate(
-                    tr, placement.pelvis[k], i, last, frames[-appearance_window:], config.keypoint_confidence)
-                last_shot[int(global_ids[k][i])] = k
-        before = sorted(last_state)
-        after = []
-        for i in range(nxt.num_people):
-            frames = np.nonzero(nxt.valid[i])[0]
-            after.append(_candidate(nxt, placement.pelvis[k + 1], i, frames[0], frames[:appearance_window],
-                                    config.keypoint_confidence) if len(frames) else None)
-        cut_frame = nxt.start_frame
-        rows_b = [last_state[g] for g in before]
-        rows_a = [r for r in after if r is not None]
-        idx_a = [i for i, r in enumerate(after) if r is not None]
-        if rows_b and rows_a:
-            stack = lambda rows, j: np.stack([np.asarray(r[j]) for r in rows])
-            # Seconds between each observation and the cut: the gate widens with them.
-            # D is known for someone last seen in shot s when every cut from s to this one placed its cameras.
-            known = np.array([bool(reliable[last_shot[g]:k + 1].all()) for g in before])
-            cand_b = Candidates(*(stack(rows_b, j) for j in range(4)), gap=(cut_frame - 1 - stack(rows_b, 4)) / fps,
-                                distance_known=known)
-            cand_a = Candidates(*(stack(rows_a, j) for j in range(4)), gap=(stack(rows_a, 4) - cut_frame) / fps)
-            matching = match_people(cand_b, cand_a, config)
-        else:
-            empty = np.zeros((len(rows_b), len(rows_a)))
-            matching = Matching(np.zeros((0, 2), np.int64), empty, empty, empty, empty)
-        pairs_now = set()
-        for bi, ai in matching.pairs:
-            global_ids[k + 1][idx_a[ai]] = before[bi]
-            pairs_now.add(before[bi])
-        for i in range(nxt.num_people):
-            if global_ids[k + 1][i] < 0:
-                global_ids[k + 1][i] = next_id
-                next_id += 1
-        matchings.append(matching)
-        before_ids.append(np.asarray(before, dtype=np.int64))
-        matched.append(pairs_now)
-    matched_at_cut = np.zeros((next_id, n_shots - 1), bool)
-    for c, gids in enumerate(matched):
-        for g in gids:
-            matched_at_cut[g, c] = True
-    return Identities(tuple(global_ids), tuple(matchings), tuple(before_ids), matched_at_cut)
+# 3-4. Propagation (multithumbs.world_placement) and identities (multithumbs.method.identities)
 
 
 # ----------------------------------------------------------------------------------------------------

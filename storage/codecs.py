@@ -24,7 +24,8 @@ def contracts() -> dict[str, type]:
     (torch), and a run that only checks the store must not import it."""
     from multithumbs.method.align import AlignedBoundary
     from multithumbs.method.reid import Matching
-    from multithumbs.pipeline import Identities, Placement
+    from multithumbs.method.identities import Identities
+    from multithumbs.world_placement import Placement
     from multithumbs.scene.focal import FocalEstimate
     from multithumbs.types import CameraTrajectory, GroundTruth, PersonTracks, SharedSpace, Shots, WorldResult
 

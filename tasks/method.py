@@ -88,7 +88,7 @@ def reidentify_people(store_url: str, inputs: dict[str, ArtifactRef], params: di
     unused (re-ID poses no bodies): it keeps every method stage's call alike."""
     def compute():
         from multithumbs.method.reid import ReidConfig
-        from multithumbs.pipeline import reidentify
+        from multithumbs.method.identities import reidentify
 
         shots = load(inputs["shots"])
         return reidentify(_tracks(inputs, shots.num_shots), load(inputs["placement"]),

@@ -122,6 +122,14 @@ class ReidConfig:
             grows by this walking speed times that gap (m/s): someone who left the view a second before
             the cut may be a metre away when they reappear.
         keypoint_confidence: a joint counts as visible when its 2D keypoint confidence exceeds this.
+        link_gap: most seconds between the end of one track and the start of another in the same shot
+            for the second to be linked to the first as the same person, on the same cost and distance gate
+            as a cut (:func:`multithumbs.method.identities.link_fragments`; 0: never). A tracker loses
+            people behind others and finds them again under a new id; 2 s is the CPU tracker's own horizon
+            for finding a lost person again by appearance (``TrackerConfig.relink_missed``).
+        link_appearance: largest appearance dissimilarity A of a link within a shot. On the standard
+            suite's pixel tracks, fragments of one person gave 0.12-0.40 and of two people 0.51-0.92
+            (docs/RESULTS.md, session 23); 0.5, A's value when no region is seen in both, passes.
     """
 
     w_geo: float = 1.0
@@ -130,6 +138,8 @@ class ReidConfig:
     max_distance: float = 1.0
     max_speed: float = 1.5
     keypoint_confidence: float = 0.5
+    link_gap: float = 2.0
+    link_appearance: float = 0.5
 
 
 @dataclass(frozen=True)

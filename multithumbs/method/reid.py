@@ -80,20 +80,28 @@ def pose_dissimilarity(pose_a: np.ndarray, pose_b: np.ndarray, visible_a: np.nda
     return np.where(count > 0, (angle * both).sum(-1) / np.maximum(count, 1), angle.mean(-1))
 
 
+def fused_cost(before: Candidates, after: Candidates, config: ReidConfig = ReidConfig()
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """U and its parts for every pair: ``(cost, distance, appearance, pose, known)``, each ``(Na, Nb)``;
+    ``known`` is where D means something (:attr:`Candidates.distance_known`) and so costs and gates."""
+    distance = np.linalg.norm(before.root[:, None] - after.root[None], axis=-1)
+    appearance = appearance_dissimilarity(before.appearance[:, None], after.appearance[None])
+    pose = pose_dissimilarity(before.body_pose, after.body_pose, before.joint_visible, after.joint_visible)
+    known = np.ones(distance.shape, bool)
+    for side, axis in ((before, (slice(None), None)), (after, (None, slice(None)))):
+        if side.distance_known is not None:
+            known &= np.asarray(side.distance_known, bool)[axis]
+    cost = config.w_geo * np.where(known, distance, 0.0) + config.w_app * appearance + config.w_pose * pose
+    return cost, distance, appearance, pose, known
+
+
 def match_people(before: Candidates, after: Candidates, config: ReidConfig = ReidConfig()) -> Matching:
     """Hungarian matching of people before and after a cut on U; pairs with D > τ are dropped."""
     n_a, n_b = before.root.shape[0], after.root.shape[0]
     if n_a == 0 or n_b == 0:
         empty = np.zeros((n_a, n_b))
         return Matching(np.zeros((0, 2), np.int64), empty, empty, empty, empty)
-    distance = np.linalg.norm(before.root[:, None] - after.root[None], axis=-1)
-    appearance = appearance_dissimilarity(before.appearance[:, None], after.appearance[None])
-    pose = pose_dissimilarity(before.body_pose, after.body_pose, before.joint_visible, after.joint_visible)
-    known = np.ones((n_a, n_b), bool)
-    for side, axis in ((before, (slice(None), None)), (after, (None, slice(None)))):
-        if side.distance_known is not None:
-            known &= np.asarray(side.distance_known, bool)[axis]
-    cost = config.w_geo * np.where(known, distance, 0.0) + config.w_app * appearance + config.w_pose * pose
+    cost, distance, appearance, pose, known = fused_cost(before, after, config)
     rows, cols = linear_sum_assignment(cost)
     gap_a = before.gap if before.gap is not None else np.zeros(n_a)
     gap_b = after.gap if after.gap is not None else np.zeros(n_b)
