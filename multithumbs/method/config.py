@@ -121,6 +121,11 @@ class ReidConfig:
         max_speed: when a candidate was last (or first) seen some time before (after) the cut, the gate
             grows by this walking speed times that gap (m/s): someone who left the view a second before
             the cut may be a metre away when they reappear.
+        motion_window: seconds at the end of a person's observation over which the world root's velocity
+            is fit (least squares, at most ``max_speed``); D is measured from the root carried by it over
+            the time to the other side's observation, at most this long (no further than the fit's span),
+            as a tracker predicts a lost track (0: from where they were last seen). Where both are seen
+            at the cut nothing is carried: the paper's D.
         keypoint_confidence: a joint counts as visible when its 2D keypoint confidence exceeds this.
         link_gap: most seconds between the end of one track and the start of another in the same shot
             for the second to be linked to the first as the same person, on the same cost and distance gate
@@ -137,6 +142,7 @@ class ReidConfig:
     w_pose: float = 0.35
     max_distance: float = 1.0
     max_speed: float = 1.5
+    motion_window: float = 1.0
     keypoint_confidence: float = 0.5
     link_gap: float = 2.0
     link_appearance: float = 0.5

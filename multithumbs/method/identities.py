@@ -5,7 +5,8 @@ Within a shot a tracker loses a person behind someone else and finds them again 
 return is an identity switch. Once every track has its world root (:class:`~multithumbs.world_placement.
 Placement`), :func:`link_fragments` treats the gap between the end of one track and the start of a later
 one in the same shot as a cut is treated: the fused cost U of §3.4 (root distance, appearance, pose),
-Hungarian, the distance gate widened by walking speed over the gap, and an appearance gate, since within
+Hungarian, the distance gate widened by walking speed over the gap (with the earlier root carried along
+its walk over it, :func:`root_velocity`), and an appearance gate, since within
 a shot nothing else says two fragments are one person. :func:`reidentify` then matches people across
 cuts, each chain of linked fragments as one person: its first fragment after a cut, its last before one.
 """
@@ -20,7 +21,7 @@ from scipy.optimize import linear_sum_assignment
 
 from multithumbs.appearance import mean_descriptor
 from multithumbs.method.config import ReidConfig
-from multithumbs.method.reid import Candidates, Matching, fused_cost, match_people
+from multithumbs.method.reid import Candidates, Matching, distance_gate, fused_cost, match_people
 from multithumbs.types import PersonTracks
 from multithumbs.world_placement import Placement
 
@@ -55,11 +56,31 @@ def _candidate(tr: PersonTracks, placement_pelvis: np.ndarray, i: int, frame: in
     return placement_pelvis[i, frame], appearance, tr.body_pose[i, frame], visible, tr.start_frame + frame
 
 
-def _candidates(rows: Sequence[tuple], gap: np.ndarray | None = None, known: np.ndarray | None = None
-                ) -> Candidates:
+def _candidates(rows: Sequence[tuple], gap: np.ndarray | None = None, known: np.ndarray | None = None,
+                velocity: np.ndarray | None = None) -> Candidates:
     def stack(j):
         return np.stack([np.asarray(r[j]) for r in rows])
-    return Candidates(stack(0), stack(1), stack(2), stack(3), gap=gap, distance_known=known)
+    return Candidates(stack(0), stack(1), stack(2), stack(3), gap=gap, distance_known=known, velocity=velocity)
+
+
+def root_velocity(pelvis: np.ndarray, frames: np.ndarray, fps: float, config: ReidConfig) -> np.ndarray:
+    """``(3,)`` m/s: the least-squares slope of a track's world root over its observed ``frames`` in the last
+    ``config.motion_window`` seconds before the latest, its norm at most ``config.max_speed``; zero with
+    fewer than 5 such frames or a window of 0 (a person standing, or too little seen to tell).
+
+    Args:
+        pelvis: ``(T, 3)`` the track's world roots; frames: ``(F,)`` increasing indices of its observed frames.
+    """
+    if config.motion_window <= 0 or len(frames) == 0:
+        return np.zeros(3)
+    recent = frames[frames >= frames[-1] - config.motion_window * fps]
+    if len(recent) < 5:
+        return np.zeros(3)
+    t = recent / fps - (recent / fps).mean()
+    x = pelvis[recent] - pelvis[recent].mean(0)
+    v = (t[:, None] * x).sum(0) / (t ** 2).sum()
+    speed = float(np.linalg.norm(v))
+    return v * (config.max_speed / speed) if speed > config.max_speed else v
 
 
 def link_fragments(tracks: PersonTracks, pelvis: np.ndarray, config: ReidConfig, appearance_window: int = 15,
@@ -91,10 +112,12 @@ def link_fragments(tracks: PersonTracks, pelvis: np.ndarray, config: ReidConfig,
     if not feasible.any():
         return previous
     c = config.keypoint_confidence
-    ends = _candidates([_candidate(tracks, pelvis, i, last[i], seen[i][-appearance_window:], c) for i in range(P)])
+    ends = _candidates([_candidate(tracks, pelvis, i, last[i], seen[i][-appearance_window:], c) for i in range(P)],
+                       velocity=np.stack([root_velocity(pelvis[i], seen[i], fps, config) for i in range(P)]))
     starts = _candidates([_candidate(tracks, pelvis, i, first[i], seen[i][:appearance_window], c) for i in range(P)])
-    cost, distance, appearance, _, known = fused_cost(ends, starts, config)
-    gate = config.max_distance + config.max_speed * frames_between / fps  # as at a cut: τ widened by the gap
+    elapsed = np.maximum(frames_between, 0) / fps
+    cost, distance, appearance, _, known = fused_cost(ends, starts, config, elapsed)
+    gate = distance_gate(elapsed, config)  # as at a cut: τ widened by the gap
     allowed = feasible & ((distance <= gate) | ~known) & (appearance <= config.link_appearance)
     if not allowed.any():
         return previous
@@ -131,6 +154,7 @@ def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: Rei
     next_id = new_ids(0, 0)
     last_state: dict[int, tuple] = {}  # gid -> candidate tuple at its last appearance
     last_shot: dict[int, int] = {}     # gid -> the shot it was last seen in
+    last_velocity: dict[int, np.ndarray] = {}  # gid -> its world root's velocity there
     reliable = placement.distance_reliable if placement.distance_reliable is not None \
         else np.ones(n_shots - 1, bool)
     matchings, before_ids = [], []
@@ -143,6 +167,7 @@ def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: Rei
             last_state[int(global_ids[k][i])] = _candidate(
                 tr, placement.pelvis[k], i, last, frames[-appearance_window:], config.keypoint_confidence)
             last_shot[int(global_ids[k][i])] = k
+            last_velocity[int(global_ids[k][i])] = root_velocity(placement.pelvis[k][i], frames, fps, config)
         before = sorted(last_state)
         after = []
         for i in range(nxt.num_people):  # a chain's first fragment stands for it after the cut
@@ -157,7 +182,8 @@ def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: Rei
             # Seconds between each observation and the cut: the gate widens with them.
             # D is known for someone last seen in shot s when every cut from s to this one placed its cameras.
             known = np.array([bool(reliable[last_shot[g]:k + 1].all()) for g in before])
-            cand_b = _candidates(rows_b, (cut_frame - 1 - np.array([r[4] for r in rows_b])) / fps, known)
+            cand_b = _candidates(rows_b, (cut_frame - 1 - np.array([r[4] for r in rows_b])) / fps, known,
+                                 np.stack([last_velocity[g] for g in before]))
             cand_a = _candidates(rows_a, (np.array([r[4] for r in rows_a]) - cut_frame) / fps)
             matching = match_people(cand_b, cand_a, config)
         else:
@@ -178,4 +204,4 @@ def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: Rei
     return Identities(tuple(global_ids), tuple(matchings), tuple(before_ids), matched_at_cut)
 
 
-__all__ = ["Identities", "link_fragments", "reidentify"]
+__all__ = ["Identities", "link_fragments", "reidentify", "root_velocity"]

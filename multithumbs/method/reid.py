@@ -5,6 +5,11 @@ nothing, a shared space that fell back with nobody seen on both sides, D neither
 :attr:`Candidates.distance_known`), A the appearance dissimilarity
 over regions valid in both (:mod:`multithumbs.appearance`), P the pose dissimilarity: the mean geodesic
 angle between SMPL joint rotations, over joints whose 2D keypoints are confident in both frames.
+
+Where a candidate was seen some time Δt from the cut (absent at it), the gate widens to τ + v·Δt, and a
+person seen before is first carried along their walk to the other side's observation (constant velocity,
+as a tracker predicts a lost track): D is measured there (:func:`fused_cost`). At the cut, both are the
+paper's.
 """
 
 from __future__ import annotations
@@ -32,6 +37,8 @@ class Candidates:
         distance_known: ``(N,)`` bool, the root's distance to the other side means something (every cut
             between its observation and the other side's has cameras from the scene or the people); where
             False, D neither costs nor gates and appearance and pose alone decide. None: all known.
+        velocity: ``(N, 3)`` m/s world velocity of the root at the observation. On the side before, the
+            root is carried by it to the other side's observation before D is measured. None: standing.
     """
 
     root: np.ndarray
@@ -40,6 +47,7 @@ class Candidates:
     joint_visible: np.ndarray
     gap: np.ndarray | None = None
     distance_known: np.ndarray | None = None
+    velocity: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -80,11 +88,33 @@ def pose_dissimilarity(pose_a: np.ndarray, pose_b: np.ndarray, visible_a: np.nda
     return np.where(count > 0, (angle * both).sum(-1) / np.maximum(count, 1), angle.mean(-1))
 
 
-def fused_cost(before: Candidates, after: Candidates, config: ReidConfig = ReidConfig()
+def elapsed_seconds(before: Candidates, after: Candidates) -> np.ndarray:
+    """``(Na, Nb)`` seconds between each pair's two observations: the sum of their gaps to the cut."""
+    gap_a = before.gap if before.gap is not None else np.zeros(before.root.shape[0])
+    gap_b = after.gap if after.gap is not None else np.zeros(after.root.shape[0])
+    return np.asarray(gap_a, np.float64)[:, None] + np.asarray(gap_b, np.float64)[None]
+
+
+def distance_gate(elapsed: np.ndarray, config: ReidConfig = ReidConfig()) -> np.ndarray:
+    """τ widened by walking speed over the time between two observations: the farthest one person's
+    roots may lie apart (m), same shape as ``elapsed`` (seconds)."""
+    return config.max_distance + config.max_speed * np.asarray(elapsed, np.float64)
+
+
+def fused_cost(before: Candidates, after: Candidates, config: ReidConfig = ReidConfig(),
+               elapsed: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """U and its parts for every pair: ``(cost, distance, appearance, pose, known)``, each ``(Na, Nb)``;
-    ``known`` is where D means something (:attr:`Candidates.distance_known`) and so costs and gates."""
-    distance = np.linalg.norm(before.root[:, None] - after.root[None], axis=-1)
+    ``known`` is where D means something (:attr:`Candidates.distance_known`) and so costs and gates.
+
+    ``elapsed`` ``(Na, Nb)``: seconds between the two observations (default :func:`elapsed_seconds`).
+    D is measured from the root before, carried by its :attr:`~Candidates.velocity` over them, for at most
+    ``config.motion_window`` seconds: no further than the span the velocity was fit on."""
+    elapsed = elapsed_seconds(before, after) if elapsed is None else np.asarray(elapsed, np.float64)
+    carried = np.clip(elapsed, 0.0, max(config.motion_window, 0.0))
+    root_before = before.root[:, None] + (0.0 if before.velocity is None else
+                                          before.velocity[:, None] * carried[..., None])
+    distance = np.linalg.norm(root_before - after.root[None], axis=-1)
     appearance = appearance_dissimilarity(before.appearance[:, None], after.appearance[None])
     pose = pose_dissimilarity(before.body_pose, after.body_pose, before.joint_visible, after.joint_visible)
     known = np.ones(distance.shape, bool)
@@ -103,9 +133,7 @@ def match_people(before: Candidates, after: Candidates, config: ReidConfig = Rei
         return Matching(np.zeros((0, 2), np.int64), empty, empty, empty, empty)
     cost, distance, appearance, pose, known = fused_cost(before, after, config)
     rows, cols = linear_sum_assignment(cost)
-    gap_a = before.gap if before.gap is not None else np.zeros(n_a)
-    gap_b = after.gap if after.gap is not None else np.zeros(n_b)
-    gate = config.max_distance + config.max_speed * (gap_a[:, None] + gap_b[None])
+    gate = distance_gate(elapsed_seconds(before, after), config)
     keep = (distance[rows, cols] <= gate[rows, cols]) | ~known[rows, cols]
     pairs = np.stack([rows[keep], cols[keep]], axis=1).astype(np.int64)
     return Matching(pairs, cost, distance, appearance, pose)

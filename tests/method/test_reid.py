@@ -78,3 +78,49 @@ def test_an_unknown_distance_neither_costs_nor_gates():
     one, far = _people([[0, 0, 0]], [0], rng), _people([[5.0, 0, 0]], [0], rng)
     assert match_people(one, far).pairs.shape == (0, 2)
     assert match_people(dataclasses.replace(one, distance_known=np.array([False])), far).pairs.tolist() == [[0, 0]]
+
+
+def test_a_root_seen_before_is_carried_along_its_walk_hand_worked():
+    # Last seen 0.5 s before the cut walking 1.2 m/s along x, first seen 0.25 s after it at x = 0.8:
+    # carried 0.75 s it stands at x = 0.9, so D = 0.1 (the paper's D from where it was seen: 0.8).
+    import dataclasses
+
+    from multithumbs.method.reid import distance_gate, fused_cost
+
+    rng = np.random.default_rng(4)
+    walker = dataclasses.replace(_people([[0, 0, 0]], [0], rng), gap=np.array([0.5]),
+                                 velocity=np.array([[1.2, 0, 0]]))
+    later = dataclasses.replace(_people([[0.8, 0, 0]], [0], rng), gap=np.array([0.25]))
+    config = ReidConfig(w_app=0.0, w_pose=0.0)
+    np.testing.assert_allclose(distance_gate(np.array([[0.75]]), config), [[1 + 1.5 * 0.75]])
+    cost, distance, *_ = fused_cost(walker, later, config)
+    np.testing.assert_allclose(distance, [[0.1]], atol=1e-12)
+    np.testing.assert_allclose(cost, [[0.1]], atol=1e-12)
+    standing = ReidConfig(w_app=0.0, w_pose=0.0, motion_window=0.0)
+    np.testing.assert_allclose(fused_cost(walker, later, standing)[1], [[0.8]])
+    # Carried no longer than the window the velocity was fit on (1 s): 3 s apart, it stands at x = 1.2.
+    far_later = dataclasses.replace(later, gap=np.array([2.5]))
+    np.testing.assert_allclose(fused_cost(walker, far_later, config)[1], [[0.4]])
+    # Both seen at the cut: nothing is carried, the paper's D.
+    at_cut = dataclasses.replace(walker, gap=np.array([0.0]))
+    np.testing.assert_allclose(fused_cost(at_cut, dataclasses.replace(later, gap=np.array([0.0])), config)[1],
+                               [[0.8]])
+
+
+def test_a_person_who_walked_on_is_told_from_one_standing_where_they_vanished():
+    # s04's cut in miniature (docs/RESULTS.md, session 25). Two walk away from the camera; the second is lost
+    # 0.9 s before the cut at z = 2.7. After the cut someone new stands at z = 2.85 and the second, walking
+    # on at 1 m/s, is seen at z = 3.6. From where it was last seen D gives it to the newcomer; carried along
+    # its walk it finds itself.
+    import dataclasses
+
+    rng = np.random.default_rng(5)
+    pose = rng.normal(0, 0.3, (1, 23, 3)).repeat(3, 0)
+    looks = np.stack([_descriptor(0), _descriptor(6), _descriptor(12)])
+    before = Candidates(np.array([[0.0, 0, 2.0], [0.6, 0, 2.7]]), looks[:2], pose[:2], np.ones((2, 23), bool),
+                        gap=np.array([0.0, 0.9]), velocity=np.array([[0, 0, 0.2], [0, 0, 1.0]]))
+    after = Candidates(np.array([[0.0, 0, 2.05], [0.7, 0, 3.6], [0.7, 0, 2.85]]), looks, pose,
+                       np.ones((3, 23), bool), gap=np.zeros(3))
+    assert match_people(before, after).pairs.tolist() == [[0, 0], [1, 1]]
+    standing = dataclasses.replace(before, velocity=None)
+    assert match_people(standing, after).pairs.tolist() == [[0, 0], [1, 2]]
