@@ -6,7 +6,7 @@ return is an identity switch. Once every track has its world root (:class:`~mult
 Placement`), :func:`link_fragments` treats the gap between the end of one track and the start of a later
 one in the same shot as a cut is treated: the fused cost U of §3.4 (root distance, appearance, pose),
 Hungarian, the distance gate widened by walking speed over the gap (with the earlier root carried along
-its walk over it, :func:`root_velocity`), and an appearance gate, since within
+its walk over it, :func:`walking_velocity`), and an appearance gate, since within
 a shot nothing else says two fragments are one person. :func:`reidentify` then matches people across
 cuts, each chain of linked fragments as one person: its first fragment after a cut, its last before one.
 """
@@ -63,7 +63,7 @@ def _candidates(rows: Sequence[tuple], gap: np.ndarray | None = None, known: np.
     return Candidates(stack(0), stack(1), stack(2), stack(3), gap=gap, distance_known=known, velocity=velocity)
 
 
-def root_velocity(pelvis: np.ndarray, frames: np.ndarray, fps: float, config: ReidConfig) -> np.ndarray:
+def walking_velocity(pelvis: np.ndarray, frames: np.ndarray, fps: float, config: ReidConfig) -> np.ndarray:
     """``(3,)`` m/s: the least-squares slope of a track's world root over its observed ``frames`` in the last
     ``config.motion_window`` seconds before the latest, its norm at most ``config.max_speed``; zero with
     fewer than 5 such frames or a window of 0 (a person standing, or too little seen to tell).
@@ -113,7 +113,7 @@ def link_fragments(tracks: PersonTracks, pelvis: np.ndarray, config: ReidConfig,
         return previous
     c = config.keypoint_confidence
     ends = _candidates([_candidate(tracks, pelvis, i, last[i], seen[i][-appearance_window:], c) for i in range(P)],
-                       velocity=np.stack([root_velocity(pelvis[i], seen[i], fps, config) for i in range(P)]))
+                       velocity=np.stack([walking_velocity(pelvis[i], seen[i], fps, config) for i in range(P)]))
     starts = _candidates([_candidate(tracks, pelvis, i, first[i], seen[i][:appearance_window], c) for i in range(P)])
     elapsed = np.maximum(frames_between, 0) / fps
     cost, distance, appearance, _, known = fused_cost(ends, starts, config, elapsed)
@@ -167,7 +167,7 @@ def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: Rei
             last_state[int(global_ids[k][i])] = _candidate(
                 tr, placement.pelvis[k], i, last, frames[-appearance_window:], config.keypoint_confidence)
             last_shot[int(global_ids[k][i])] = k
-            last_velocity[int(global_ids[k][i])] = root_velocity(placement.pelvis[k][i], frames, fps, config)
+            last_velocity[int(global_ids[k][i])] = walking_velocity(placement.pelvis[k][i], frames, fps, config)
         before = sorted(last_state)
         after = []
         for i in range(nxt.num_people):  # a chain's first fragment stands for it after the cut
@@ -204,4 +204,4 @@ def reidentify(tracks: Sequence[PersonTracks], placement: Placement, config: Rei
     return Identities(tuple(global_ids), tuple(matchings), tuple(before_ids), matched_at_cut)
 
 
-__all__ = ["Identities", "link_fragments", "reidentify", "root_velocity"]
+__all__ = ["Identities", "link_fragments", "reidentify", "walking_velocity"]

@@ -131,9 +131,10 @@ def match_people(before: Candidates, after: Candidates, config: ReidConfig = Rei
     if n_a == 0 or n_b == 0:
         empty = np.zeros((n_a, n_b))
         return Matching(np.zeros((0, 2), np.int64), empty, empty, empty, empty)
-    cost, distance, appearance, pose, known = fused_cost(before, after, config)
+    elapsed = elapsed_seconds(before, after)
+    cost, distance, appearance, pose, known = fused_cost(before, after, config, elapsed)
     rows, cols = linear_sum_assignment(cost)
-    gate = distance_gate(elapsed_seconds(before, after), config)
+    gate = distance_gate(elapsed, config)
     keep = (distance[rows, cols] <= gate[rows, cols]) | ~known[rows, cols]
     pairs = np.stack([rows[keep], cols[keep]], axis=1).astype(np.int64)
     return Matching(pairs, cost, distance, appearance, pose)

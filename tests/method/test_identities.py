@@ -89,8 +89,8 @@ def test_a_track_never_seen_is_skipped(tiny):
     assert link_fragments(tracks, world_pelvis(tracks), ReidConfig(), fps=tiny.shots.fps).tolist() == [-1, -1, 0]
 
 
-def test_root_velocity_is_the_walk_over_the_last_second():
-    from multithumbs.method.identities import root_velocity
+def test_walking_velocity_is_the_walk_over_the_last_second():
+    from multithumbs.method.identities import walking_velocity
 
     rng = np.random.default_rng(0)
     t = np.arange(90) / 30.0
@@ -98,8 +98,8 @@ def test_root_velocity_is_the_walk_over_the_last_second():
     walk[:60] = walk[60]                                       # ...after two seconds standing
     noisy = walk + rng.normal(0, 0.05, walk.shape)             # fits' roots jitter by centimetres
     frames = np.arange(90)[np.arange(90) % 7 != 3]             # some frames not seen
-    np.testing.assert_allclose(root_velocity(noisy, frames, 30.0, ReidConfig()), [0.8, 0, -0.6], atol=0.1)
+    np.testing.assert_allclose(walking_velocity(noisy, frames, 30.0, ReidConfig()), [0.8, 0, -0.6], atol=0.1)
     sprint = walk * 4
-    np.testing.assert_allclose(np.linalg.norm(root_velocity(sprint, frames, 30.0, ReidConfig())), 1.5)
-    assert not root_velocity(noisy, frames[:4], 30.0, ReidConfig()).any()  # too little seen to tell
-    assert not root_velocity(noisy, frames, 30.0, ReidConfig(motion_window=0.0)).any()
+    np.testing.assert_allclose(np.linalg.norm(walking_velocity(sprint, frames, 30.0, ReidConfig())), 1.5)
+    assert not walking_velocity(noisy, frames[:4], 30.0, ReidConfig()).any()  # too little seen to tell
+    assert not walking_velocity(noisy, frames, 30.0, ReidConfig(motion_window=0.0)).any()
