@@ -30,6 +30,7 @@ from multithumbs.body.smpl_files import _read_npz, convert_smpl_pickle, read_smp
 # The posing algebra (Rodrigues coordinate-major, the kinematic tree by levels) lives in kinematics.
 from multithumbs.body.kinematics import _KinematicLevels, rodrigues_coordinate_major  # noqa: F401
 from multithumbs.conventions import NUM_BETAS, NUM_BODY_JOINTS, NUM_JOINTS
+from multithumbs.determinism import fix_threads
 from multithumbs.body.paths import MODEL_ENV_VAR, resolve_model_path  # noqa: F401  (re-exported)
 from multithumbs.errors import InputError
 
@@ -97,6 +98,10 @@ class BodyModel:
         # Poses per smplx call: about VERTICES_PER_CALL vertices at a time.
         self.chunk_size = max(1, VERTICES_PER_CALL // self.num_vertices)
         # Joint regression is linear in the betas: J(β) = J_template + J_shapedirs · β (for joints()).
+        # These products round by torch's thread count: with two threads they differed in the last bits and
+        # every body fitted with the model after them did too, so `bench --workers 1` (the body loaded before
+        # any stage pinned the count) and `--workers 2` stored different bytes under one key.
+        fix_threads()
         regressor = smpl.J_regressor
         self._joint_template = regressor @ smpl.v_template
         self._joint_shapedirs = torch.einsum("jv,vck->jck", regressor, smpl.shapedirs)

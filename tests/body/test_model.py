@@ -316,3 +316,30 @@ def test_load_body_model_is_cached_by_path(body, tmp_path):
     assert load_body_model().source == "procedural"
     other = write_procedural_smpl(tmp_path / "other.npz")
     assert load_body_model(other) is load_body_model(str(other)) is not load_body_model()
+
+
+_JOINT_BYTES = """
+import hashlib, sys
+import multithumbs, torch
+from multithumbs.determinism import fix_threads
+if sys.argv[1] == "pinned":
+    fix_threads()
+else:
+    torch.set_num_threads(2)
+    torch.ones(64, 64) @ torch.ones(64, 64)  # this thread's first parallel op: it keeps two threads
+from multithumbs.body.model import load_body_model
+body = load_body_model()
+print(hashlib.sha1(body._joint_template.numpy().tobytes() + body._joint_shapedirs.numpy().tobytes()).hexdigest())
+"""
+
+
+def test_the_models_joint_regression_has_the_same_bytes_whatever_threads_the_process_had(cache):
+    # The bench's --workers 1 loaded the model before any stage pinned torch's threads, --workers 2 after:
+    # the two stored different fitted bodies under one key until the model pinned them itself.
+    import os
+    import subprocess
+
+    env = {**os.environ, "MULTITHUMBS_CACHE": str(cache)}
+    digests = [subprocess.run([sys.executable, "-c", _JOINT_BYTES, mode], env=env, capture_output=True, text=True,
+                              check=True).stdout.strip() for mode in ("pinned", "two threads")]
+    assert digests[0] and digests[0] == digests[1]
