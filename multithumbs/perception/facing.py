@@ -68,7 +68,7 @@ class FacingConfig:
     frames, read as a front before the walk or a face says anything, kept their wrong label while the rest
     of the track was mirrored (s01's and s09's first shots, 140-157° off at W-MPJPE's two aligned frames):
     4 takes the suite's nothing-simulated W-MPJPE from 752.7 to 651.7 mm with the same bodies elsewhere;
-    8 gave the same W-MPJPE but kept a long wrong run in s05 (PA-MPJPE 101 -> 120 mm). On Megamind.avi's
+    8 gave the same W-MPJPE but kept a long wrong run in s05 (MPJPE 101 -> 120 mm). On Megamind.avi's
     front-facing characters, fitted bodies facing away: 12 of 422 person-frames at 2, 17 at 4, 11 at 8."""
     mirror_cost: float = 0.05
     """Cost per frame of the mirror reading: BlazePose's own is kept where nothing else decides."""
