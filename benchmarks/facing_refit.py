@@ -49,14 +49,11 @@ def facing_overrides(text: str | None) -> dict[str, float | bool]:
 
 def stored_inputs(config, store) -> tuple:
     """The scene's pixel inputs as the bench stored them (``shots, tracks, trajectories, spaces, ...``)."""
-    from multithumbs.bench_sources import PIXEL_STAGES
-    from multithumbs.cpu_kernels import network_kernel_tag
+    from multithumbs.bench_sources import pixel_input_params
     from multithumbs.errors import InputError
     from multithumbs.synth.config import config_to_json
 
-    params = {"scene": config_to_json(config), "stages": list(PIXEL_STAGES), "withhold_focal": False, "seed": 0,
-              "network_kernels": network_kernel_tag()}
-    cached = store.load(params)
+    cached = store.load(pixel_input_params(config_to_json(config)))
     if cached is None:
         raise InputError(f"{config.name}: no pixel inputs stored for this code under MULTITHUMBS_CACHE; "
                          f"run `multithumbs bench --from-pixels` first")
@@ -133,13 +130,12 @@ def main(argv: list[str] | None = None) -> int:
 
     from multithumbs.bench import check_variants, run_scene_results, scene_metrics
     from multithumbs.body.model import load_body_model
-    from multithumbs.cli_runtime import cache_dir
     from multithumbs.determinism import fix_threads
     from multithumbs.errors import InputError
     from multithumbs.metrics.evaluate import evaluate
     from multithumbs.perception.facing import FacingConfig
+    from multithumbs.synth.commands import pixel_input_cache
     from multithumbs.synth.suite import suite
-    from tasks.bench_inputs import StoreInputCache
 
     try:
         facing = FacingConfig(**facing_overrides(args.facing))
@@ -153,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
             configs = [c for c in configs if c.name in names]
         fix_threads()
         body = load_body_model()
-        store = StoreInputCache(str(cache_dir() / "bench_store"))
+        store = pixel_input_cache()
         keep = Path(args.keep)
         keep.mkdir(parents=True, exist_ok=True)
         rows = {}

@@ -37,14 +37,14 @@ def main() -> None:
     from multithumbs.geometry import world_to_camera
     from multithumbs.metrics.evaluate import body_points, evaluate
     from multithumbs.metrics.identity import box_iou, projected_boxes
-    from multithumbs.synth.commands import _pixel_input_cache
+    from multithumbs.synth.commands import pixel_input_cache
     from multithumbs.synth.suite import suite_scene
 
     torch.set_num_threads(1)
     body = load_body_model()
     variants = args.variants.split(",")
     for name in args.scenes.split(","):
-        pixels = {"inputs": "pixels", "input_cache": _pixel_input_cache()} if args.from_pixels else {}
+        pixels = {"inputs": "pixels", "input_cache": pixel_input_cache()} if args.from_pixels else {}
         truth, results = run_scene_results(suite_scene("standard", name), variants, body, **pixels)
         _, true_vertices = body_points(body, truth.world)
         true_boxes, _ = projected_boxes(world_to_camera(true_vertices, truth.world.R, truth.world.t),

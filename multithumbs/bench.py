@@ -23,7 +23,8 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from multithumbs.bench_sources import (BACKENDS, INPUT_SOURCES, PERCEPTION_ROUTES, PIXEL_BACKENDS,  # noqa: F401
-                                       PIXEL_STAGES, InputCache, checked_pixel_stages, pixel_inputs,
+                                       PIXEL_STAGES, InputCache, checked_pixel_stages, pixel_input_params,
+                                       pixel_inputs,
                                        through_phalp_file)
 from multithumbs.errors import InputError
 from multithumbs.metric_names import METRIC_KEYS  # noqa: F401  (re-exported)
@@ -83,7 +84,6 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
     """
     import time
 
-    from multithumbs.cpu_kernels import network_kernel_tag
     from multithumbs.determinism import fix_threads
     from multithumbs.synth.perception import simulate_perception
     from multithumbs.synth.scene import synthesize
@@ -92,9 +92,7 @@ def run_scene_results(config: SceneConfig, variants: Sequence[str], body, base: 
     fix_threads()  # synthesis and simulated perception round by thread count too, not only the method
     video = synthesize(config, body)
     if inputs in ("pixels", "pixels_no_focal"):
-        params = {"scene": config_to_json(config), "stages": list(checked_pixel_stages(pixel_stages)),
-                  "withhold_focal": inputs == "pixels_no_focal", "seed": seed,
-                  "network_kernels": network_kernel_tag()}  # BlazePose's XNNPACK: no switch to pin
+        params = pixel_input_params(config_to_json(config), pixel_stages, inputs == "pixels_no_focal", seed)
         cached = input_cache.load(params) if input_cache is not None else None
         if cached is not None:
             shots, tracks, trajectories, spaces, backends, stage_seconds = cached

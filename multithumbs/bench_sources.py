@@ -60,6 +60,18 @@ def checked_pixel_stages(names: str | Sequence[str] | None) -> tuple[str, ...]:
     return tuple(n for n in PIXEL_STAGES if n in listed)
 
 
+def pixel_input_params(scene: dict, stages: Sequence[str] = PIXEL_STAGES, withhold_focal: bool = False,
+                       seed: int = 0) -> dict:
+    """What a scene's pixel inputs depend on besides the code, the key of :class:`InputCache`: the scene's
+    settings (``config_to_json``), the stages taken from the pixels, whether the focal length was withheld,
+    the seed of the simulated stages and the kernels BlazePose's XNNPACK computed with (it has no switch to
+    pin, :func:`multithumbs.cpu_kernels.network_kernel_tag`)."""
+    from multithumbs.cpu_kernels import network_kernel_tag
+
+    return {"scene": scene, "stages": list(checked_pixel_stages(stages)), "withhold_focal": withhold_focal,
+            "seed": seed, "network_kernels": network_kernel_tag()}
+
+
 def pixel_inputs(video, body, seconds: dict[str, float] | None = None, withhold_focal: bool = False,
                  stages: Sequence[str] = PIXEL_STAGES, seed: int = 0):
     """The method's inputs of a rendered scene with the ``stages`` (of :data:`PIXEL_STAGES`) computed from
@@ -176,4 +188,4 @@ def through_phalp_file(tracks: Sequence, video, body) -> list:
 
 
 __all__ = ["BACKENDS", "PERCEPTION_ROUTES", "INPUT_SOURCES", "PIXEL_BACKENDS", "PIXEL_STAGES", "InputCache",
-           "checked_pixel_stages", "pixel_inputs", "through_phalp_file"]
+           "checked_pixel_stages", "pixel_input_params", "pixel_inputs", "through_phalp_file"]

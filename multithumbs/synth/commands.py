@@ -150,7 +150,7 @@ def register(app: typer.Typer) -> None:
             task = bar.add_task(f"suite {suite_name}" + (" from pixels" if from_pixels else ""), total=len(configs))
             results = run_suite(configs, names, workers, progress=lambda s, done, total: bar.update(task, completed=done),
                                 perception=perception_file, inputs=inputs, pixel_stages=stages,
-                                input_cache=_pixel_input_cache() if from_pixels else None)
+                                input_cache=pixel_input_cache() if from_pixels else None)
         summary = summarize(results, names)
         elapsed = time.perf_counter() - start
         if from_pixels:
@@ -191,7 +191,7 @@ def _machine() -> dict[str, str]:
     return {"cpu": cpu_model(), "kernels": kernel_tag()}
 
 
-def _pixel_input_cache():
+def pixel_input_cache():
     """The artifact store under the project's cache that keeps ``bench --from-pixels`` inputs between runs
     (``MULTITHUMBS_CACHE/bench_store``; ``tasks.bench_inputs``)."""
     from multithumbs.cli_runtime import cache_dir
