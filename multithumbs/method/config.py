@@ -81,7 +81,7 @@ class AlignConfig:
             people from dragging a camera the static scenes already registered: 0.1 holds the cameras within
             millimetres of the registration, and 1e-3 let the people's depths move them. Standard suite,
             full W-MPJPE at 1e-3 / 1e-2 / 0.1 / 1: simulated perception 101.4 / 100.7 / 100.7 / 100.7 mm; from
-            the pixels 654.3 / 646.7 / 645.5 / 645.5 mm (s08's second camera was pulled 0.2 m off by
+            the pixels 654.3 / 646.7 / 645.5 / 645.5 mm (s08's second camera was pulled 0.25 m off by
             BlazePose's fitted depths: 875 -> 799 mm; docs/RESULTS.md, session 27).
     """
 
