@@ -1,18 +1,22 @@
-"""The nothing-simulated suite again with other front/back labelling settings, in minutes instead of a bench.
+"""The nothing-simulated suite again with other labelling or method settings, in minutes instead of a bench.
 
 ``multithumbs bench --from-pixels`` keeps each scene's pixel inputs in the store under ``MULTITHUMBS_CACHE``.
-This script reads them, keeps BlazePose's own readings of every shot once (``track_shot``'s output, the
-floor's shift at the feet and the head cue; their 2D keypoints and masks are the stored tracks'), then
-re-fits the bodies with the labelling settings given (:class:`multithumbs.perception.facing.FacingConfig`)
-and runs the method on them with the stored cuts, cameras and shared spaces. Only the fitting, the labelling
-and the method run again: about 35 s a scene, against 17 minutes for the bench from nothing.
+This script reads them and runs the method on them with the stored cuts, cameras and shared spaces, under
+the method settings given (``--method section.name=value,...``: fields of the
+:class:`multithumbs.method.config.MethodConfig` sections ``align``, ``reid`` and ``post``), about 40 s a
+scene. With ``--facing``, it first keeps BlazePose's own readings of every shot in ``--keep`` (computed
+once: ``track_shot``'s output, the floor's shift at the feet and the head cue; their 2D keypoints and masks
+are the stored tracks'), then re-fits the bodies with the labelling settings given
+(:class:`multithumbs.perception.facing.FacingConfig`). Only the fitting, the labelling and the method run
+again, against 17 minutes for the bench from nothing.
 
     multithumbs bench --suite standard --from-pixels --json > /dev/null     # once: the stored inputs
-    PYTHONPATH=. .venv/bin/python benchmarks/facing_refit.py --keep /tmp/readings [--facing turn_cost=4]
-        [--scenes s01_two_people_20deg,...] [--variants full,no_align]
+    PYTHONPATH=. .venv/bin/python benchmarks/facing_refit.py [--keep /tmp/readings --facing turn_cost=4]
+        [--method align.w_camera_prior=0.1] [--scenes s01_two_people_20deg,...] [--variants full,no_align]
 
 Prints each scene's W-MPJPE, WA-MPJPE, MPJPE and IDs, then the frame-weighted means the bench prints.
-With no ``--facing`` the figures are the bench's own (session 26 used it to choose ``turn_cost``).
+With no settings the figures are the bench's own (session 26 used it to choose ``turn_cost``, session 27
+the alignment's ``w_camera_prior``).
 """
 
 from __future__ import annotations
@@ -26,25 +30,47 @@ import multithumbs  # noqa: F401  (before numpy and torch: it pins the CPU kerne
 import numpy as np
 
 
-def facing_overrides(text: str | None) -> dict[str, float | bool]:
-    """``name=value,...`` as :class:`FacingConfig` keyword arguments, each of its field's type."""
+def config_overrides(cls, text: str | None, flag: str, prefix: str = "") -> dict[str, float | bool]:
+    """``name=value,...`` as keyword arguments of the dataclass ``cls``, each of its field's type (errors name
+    each item as ``prefix`` + item, under ``flag``)."""
     from multithumbs.errors import InputError
-    from multithumbs.perception.facing import FacingConfig
 
-    defaults = {name: f.default for name, f in FacingConfig.__dataclass_fields__.items()}
+    defaults = {name: f.default for name, f in cls.__dataclass_fields__.items()
+                if isinstance(f.default, bool | int | float)}
     out: dict[str, float | bool] = {}
-    for item in filter(None, (text or "").split(",")):
-        name, _, value = (part.strip() for part in item.partition("="))
+    for setting in filter(None, (text or "").split(",")):
+        item = prefix + setting
+        name, _, value = (part.strip() for part in setting.partition("="))
         if name not in defaults or not value:
-            raise InputError(f"--facing {item!r}: expected name=value with a name of {', '.join(sorted(defaults))}")
+            raise InputError(f"{flag} {item!r}: expected name=value with a name of {', '.join(sorted(defaults))}")
         kind = type(defaults[name])  # bool, int or float, as the field's default
         if kind is bool and value.lower() not in ("true", "false"):
-            raise InputError(f"--facing {item!r}: {value!r} is not true or false")
+            raise InputError(f"{flag} {item!r}: {value!r} is not true or false")
         try:
             out[name] = value.lower() == "true" if kind is bool else kind(value)
         except ValueError:
-            raise InputError(f"--facing {item!r}: {value!r} is not a {kind.__name__}") from None
+            raise InputError(f"{flag} {item!r}: {value!r} is not a {kind.__name__}") from None
     return out
+
+
+def method_config(text: str | None):
+    """``section.name=value,...`` (sections ``align``, ``reid``, ``post``) as a :class:`MethodConfig`."""
+    from dataclasses import replace
+
+    from multithumbs.errors import InputError
+    from multithumbs.method.config import MethodConfig
+
+    base, grouped = MethodConfig(), {}
+    for item in filter(None, (text or "").split(",")):
+        section, _, setting = item.strip().partition(".")
+        if section not in ("align", "reid", "post") or not setting:
+            raise InputError(f"--method {item!r}: expected section.name=value with a section of align, reid, post")
+        grouped.setdefault(section, []).append(setting)
+    sections = {section: replace(getattr(base, section),
+                                 **config_overrides(type(getattr(base, section)), ",".join(items), "--method",
+                                                   f"{section}."))
+                for section, items in grouped.items()}
+    return replace(base, **sections)
 
 
 def stored_inputs(config, store) -> tuple:
@@ -122,8 +148,12 @@ class _Refitted:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--keep", required=True, help="folder for BlazePose's readings (one file per scene)")
-    parser.add_argument("--facing", default=None, help="FacingConfig overrides, name=value,... (default: none)")
+    parser.add_argument("--keep", default=None, help="folder for BlazePose's readings (one file per scene); "
+                                                      "needed with --facing")
+    parser.add_argument("--facing", default=None, help="FacingConfig overrides, name=value,... (default: none, "
+                                                       "the stored bodies)")
+    parser.add_argument("--method", default=None, help="MethodConfig overrides, section.name=value,... "
+                                                       "(default: none)")
     parser.add_argument("--scenes", default=None, help="comma-separated standard-suite scenes (default: all 12)")
     parser.add_argument("--variants", default="full,no_align", help="comma-separated variants")
     args = parser.parse_args(argv)
@@ -138,7 +168,10 @@ def main(argv: list[str] | None = None) -> int:
     from multithumbs.synth.suite import suite
 
     try:
-        facing = FacingConfig(**facing_overrides(args.facing))
+        facing = FacingConfig(**config_overrides(FacingConfig, args.facing, "--facing"))
+        method = method_config(args.method)
+        if args.facing and not args.keep:
+            raise InputError("--facing: needs --keep, the folder for BlazePose's readings")
         variants = check_variants(args.variants.split(","))
         configs = suite("standard")
         if args.scenes:
@@ -150,14 +183,17 @@ def main(argv: list[str] | None = None) -> int:
         fix_threads()
         body = load_body_model()
         store = pixel_input_cache()
-        keep = Path(args.keep)
-        keep.mkdir(parents=True, exist_ok=True)
+        keep = Path(args.keep) if args.facing else None
+        if keep is not None:
+            keep.mkdir(parents=True, exist_ok=True)
         rows = {}
         for config in configs:
             inputs = stored_inputs(config, store)
-            readings = keep_readings(config, body, inputs[1], keep / f"{config.name}.pkl")
-            tracks = refit_tracks(inputs[1], readings, body, facing)
-            truth, results = run_scene_results(config, variants, body, inputs="pixels",
+            tracks = inputs[1]
+            if keep is not None:
+                readings = keep_readings(config, body, inputs[1], keep / f"{config.name}.pkl")
+                tracks = refit_tracks(inputs[1], readings, body, facing)
+            truth, results = run_scene_results(config, variants, body, base=method, inputs="pixels",
                                                input_cache=_Refitted(inputs, tracks))
             rows[config.name] = {v: scene_metrics(evaluate(r, truth, body))[0] for v, r in results.items()}
             print(config.name[:28].ljust(28), "  ".join(
@@ -166,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    print(f"facing: {facing}")
+    print(f"facing: {facing if keep is not None else 'the stored bodies'}; method: {args.method or 'defaults'}")
     for v in variants:
         frames = np.array([r[v]["scored_frames"] for r in rows.values()], float)
         mean = {k: float((np.array([r[v][k] for r in rows.values()]) * frames).sum() / frames.sum())
