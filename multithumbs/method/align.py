@@ -31,7 +31,8 @@ relative to that camera, cannot see it: the paper's stage 3 camera refinement th
 disagreement of the two frames' static scenes, which :func:`multithumbs.method.views.register_views`
 removes before the stages (full 154.3 -> 118.9 mm; docs/RESULTS.md). In stage 3 such points move with
 their camera (``points_follow_cameras``), so refining a camera cannot tear a frame's people from its
-scene, and a weak prior on the cameras fixes the gauge this leaves. Points observed in both frames
+scene, and a prior on the cameras (``AlignConfig.w_camera_prior``) fixes the gauge this leaves and keeps
+the people's depths from dragging the registered cameras. Points observed in both frames
 (triangulated) stay where they are, as the paper's objective has them.
 """
 

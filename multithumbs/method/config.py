@@ -78,8 +78,8 @@ class AlignConfig:
         w_camera_prior: weight of ``‖ω‖² + ‖C − C₀‖²`` (rad², m²) keeping stage 3's cameras near their
             registered poses: with points that follow their cameras, the people's losses leave a gauge
             (camera, its points and its people moving together) that this fixes. It is also what keeps the
-            people from dragging a camera the static scenes already registered: 0.1 holds the cameras within
-            millimetres of the registration, and 1e-3 let the people's depths move them. Standard suite,
+            people from dragging a camera the static scenes already registered: at 0.1 stage 3 left s08's
+            second camera where the registration put it, at 1e-3 the people's depths moved it. Standard suite,
             full W-MPJPE at 1e-3 / 1e-2 / 0.1 / 1: simulated perception 101.4 / 100.7 / 100.7 / 100.7 mm; from
             the pixels 654.3 / 646.7 / 645.5 / 645.5 mm (s08's second camera was pulled 0.25 m off by
             BlazePose's fitted depths: 875 -> 799 mm; docs/RESULTS.md, session 27).

@@ -252,7 +252,7 @@ def test_people_whose_size_is_off_do_not_drag_a_camera_the_scene_registered(tiny
     small = dataclasses.replace(people, local_vertices=people.local_vertices * shrink,
                                 local_joints=people.local_joints * shrink)
     space = tiny.spaces[0]
-    moved = {}  # prior -> how far the second camera's centre ends from the registered one (m)
+    moved = {}  # prior -> how far the second camera's centre ends from the space's (clean: nothing to register)
     for prior in (1e-3, AlignConfig().w_camera_prior):
         aligned = align_boundary(small, space, dataclasses.replace(FAST, w_camera_prior=prior))
         registered = -space.R[1].T @ (space.t[1] * aligned.scale)
