@@ -30,17 +30,15 @@ import multithumbs  # noqa: F401  (before numpy and torch: it pins the CPU kerne
 import numpy as np
 
 
-def config_overrides(cls, text: str | None, flag: str, prefix: str = "") -> dict[str, float | bool]:
-    """``name=value,...`` as keyword arguments of the dataclass ``cls``, each of its field's type (errors name
-    each item as ``prefix`` + item, under ``flag``)."""
+def config_overrides(cls, text: str | None, flag: str) -> dict[str, float | bool]:
+    """``name=value,...`` as keyword arguments of the dataclass ``cls``, each of its field's type."""
     from multithumbs.errors import InputError
 
     defaults = {name: f.default for name, f in cls.__dataclass_fields__.items()
                 if isinstance(f.default, bool | int | float)}
     out: dict[str, float | bool] = {}
-    for setting in filter(None, (text or "").split(",")):
-        item = prefix + setting
-        name, _, value = (part.strip() for part in setting.partition("="))
+    for item in filter(None, (text or "").split(",")):
+        name, _, value = (part.strip() for part in item.partition("="))
         if name not in defaults or not value:
             raise InputError(f"{flag} {item!r}: expected name=value with a name of {', '.join(sorted(defaults))}")
         kind = type(defaults[name])  # bool, int or float, as the field's default
@@ -51,26 +49,6 @@ def config_overrides(cls, text: str | None, flag: str, prefix: str = "") -> dict
         except ValueError:
             raise InputError(f"{flag} {item!r}: {value!r} is not a {kind.__name__}") from None
     return out
-
-
-def method_config(text: str | None):
-    """``section.name=value,...`` (sections ``align``, ``reid``, ``post``) as a :class:`MethodConfig`."""
-    from dataclasses import replace
-
-    from multithumbs.errors import InputError
-    from multithumbs.method.config import MethodConfig
-
-    base, grouped = MethodConfig(), {}
-    for item in filter(None, (text or "").split(",")):
-        section, _, setting = item.strip().partition(".")
-        if section not in ("align", "reid", "post") or not setting:
-            raise InputError(f"--method {item!r}: expected section.name=value with a section of align, reid, post")
-        grouped.setdefault(section, []).append(setting)
-    sections = {section: replace(getattr(base, section),
-                                 **config_overrides(type(getattr(base, section)), ",".join(items), "--method",
-                                                   f"{section}."))
-                for section, items in grouped.items()}
-    return replace(base, **sections)
 
 
 def stored_inputs(config, store) -> tuple:
@@ -152,8 +130,8 @@ def main(argv: list[str] | None = None) -> int:
                                                       "needed with --facing")
     parser.add_argument("--facing", default=None, help="FacingConfig overrides, name=value,... (default: none, "
                                                        "the stored bodies)")
-    parser.add_argument("--method", default=None, help="MethodConfig overrides, section.name=value,... "
-                                                       "(default: none)")
+    parser.add_argument("--method", default=None, help="MethodConfig overrides, section.name=value,... as "
+                                                       "`multithumbs run --set` takes (default: none)")
     parser.add_argument("--scenes", default=None, help="comma-separated standard-suite scenes (default: all 12)")
     parser.add_argument("--variants", default="full,no_align", help="comma-separated variants")
     args = parser.parse_args(argv)
@@ -163,13 +141,14 @@ def main(argv: list[str] | None = None) -> int:
     from multithumbs.determinism import fix_threads
     from multithumbs.errors import InputError
     from multithumbs.metrics.evaluate import evaluate
+    from multithumbs.overrides import method_config, parse_assignments
     from multithumbs.perception.facing import FacingConfig
     from multithumbs.synth.commands import pixel_input_cache
     from multithumbs.synth.suite import suite
 
     try:
         facing = FacingConfig(**config_overrides(FacingConfig, args.facing, "--facing"))
-        method = method_config(args.method)
+        method = method_config("full", parse_assignments(filter(None, (args.method or "").split(",")), "--method"))
         if args.facing and not args.keep:
             raise InputError("--facing: needs --keep, the folder for BlazePose's readings")
         variants = check_variants(args.variants.split(","))

@@ -54,25 +54,6 @@ def evaluate_cmd(
     Console().print(table)
 
 
-def _method_overrides(assignments: list[str]) -> dict:
-    """``section.field=value`` (JSON values) -> the flow's ``method`` overrides."""
-    overrides: dict = {}
-    for text in assignments:
-        name, sep, value = text.partition("=")
-        if not sep or not name:
-            raise InputError(f"--set {text!r}: expected section.field=value, e.g. reid.max_distance=0.8")
-        try:
-            parsed = json.loads(value)
-        except ValueError:
-            parsed = value
-        section, dot, field = name.partition(".")
-        if dot:
-            overrides.setdefault(section, {})[field] = parsed
-        else:
-            overrides[section] = parsed
-    return overrides
-
-
 RUN_OUTPUTS = ("result.npz", "metrics.json", "overlay.mp4", "report.md", "outputs.json")
 
 
@@ -132,10 +113,10 @@ def run_cmd(
     if truth is not None and not truth.is_file():
         raise InputError(f"--truth {truth}: no such file")
     check_output_dir(out, overwrite, RUN_OUTPUTS)
-    method = _method_overrides(settings)
-    start_flow_api()
-    from multithumbs.overrides import method_config
+    from multithumbs.overrides import method_config, parse_assignments
 
+    method = parse_assignments(settings)
+    start_flow_api()
     method_config(variant, method)
     if terms[0].backend == "hmr2" or len(terms) > 1:
         from multithumbs.perception.hmr2 import select_device

@@ -7,11 +7,35 @@ flow's modules are imported.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+import json
+from typing import Any, Sequence
 
 
 METHOD_SECTIONS = ("align", "reid", "post")
 """Sub-configs of :class:`multithumbs.pipeline.MethodConfig` that overrides may name."""
+
+
+def parse_assignments(assignments: Sequence[str], flag: str = "--set") -> dict:
+    """``section.field=value`` texts (JSON values; a value that is not JSON stays a string) as the overrides
+    :func:`method_config` takes, e.g. ``["reid.max_distance=0.8"]`` -> ``{"reid": {"max_distance": 0.8}}``.
+    A name without a section is a top-level field of ``MethodConfig``."""
+    from multithumbs.errors import InputError
+
+    overrides: dict = {}
+    for text in assignments:
+        name, sep, value = text.partition("=")
+        if not sep or not name:
+            raise InputError(f"{flag} {text!r}: expected section.field=value, e.g. reid.max_distance=0.8")
+        try:
+            parsed = json.loads(value)
+        except ValueError:
+            parsed = value
+        section, dot, field = name.partition(".")
+        if dot:
+            overrides.setdefault(section, {})[field] = parsed
+        else:
+            overrides[section] = parsed
+    return overrides
 
 
 def method_config(variant: str = "full", overrides: dict[str, Any] | None = None):
