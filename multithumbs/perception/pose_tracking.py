@@ -37,6 +37,8 @@ but not badly enough to be dropped are not learnt from, and ``split_frames`` of 
 track: a hidden person's square has slid onto someone no track followed, who gets a track of their own
 from the first of them, while the hidden person's track is lost with its model intact (step 1;
 :mod:`.track_split`, which also merges a split back when its readings come to fit the old model again).
+Once the shot is read, a split that stands loses those first readings: the square was in transit between
+the two people, and they are partly each.
 
 The detector is anchored on the face (BlazePose): people seen from behind are found late or not at
 all, and are carried from their landmarks once found. Ids are local to the shot and never reused.
@@ -55,7 +57,7 @@ from multithumbs.perception.person_proposals import hog_boxes, proposal_roi
 from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity, moved_square, plausible, same_person
 from multithumbs.perception.shot_assembly import ShotPoses, assemble, drop_short_runs, landmark_box, settle_frame
 from multithumbs.perception.track_appearance import clearly_better, updated_model
-from multithumbs.perception.track_split import merged_back, moved, remember_fit, split
+from multithumbs.perception.track_split import drop_transit, merged_back, moved, remember_fit, split
 from multithumbs.perception.track_stitch import stitch_fragments
 from multithumbs.perception.tracker_config import TrackerConfig
 
@@ -75,6 +77,7 @@ class _Track:
     fits: list = field(default_factory=list)  # the model's dissimilarity to the last 5 readings that fitted it as usual (track_split)
     split_from: "_Track | None" = None  # the track this one was split from, while it may still be merged back
     alike: int = 0  # this track's latest readings in a row that fit ``split_from``'s model well
+    transit: set = field(default_factory=set)  # frames read while a split's square slid onto this person (track_split)
 
     @property
     def box(self) -> np.ndarray:
@@ -257,6 +260,7 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
     landmark_calls += reread_starts(tracks, frames, model, config) + backfill(tracks, frames, model, config)
     tracks = stitch_fragments(tracks, config)
     for tr in tracks:
+        drop_transit(tr, config)
         drop_short_runs(tr, config.min_run)
     return assemble([tr for tr in tracks if len(tr.frames) >= config.min_frames], t + 1, image_size, config,
                      detector_calls, landmark_calls)

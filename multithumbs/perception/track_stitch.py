@@ -77,6 +77,7 @@ def stitch_fragments(tracks: list[_Track], config: TrackerConfig) -> list[_Track
         a, b = pair
         a.frames.update(b.frames)
         a.masks.update(b.masks)
+        a.transit |= b.transit
         tracks.remove(b)
     return tracks
 

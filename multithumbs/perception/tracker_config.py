@@ -106,6 +106,9 @@ class TrackerConfig:
     merge_splits: bool = True
     """Give a split-off track's frames back to the track it came from when ``split_frames`` of its readings
     in a row fit that track's model well again (:mod:`.track_split`: its own person read poorly)."""
+    drop_transit: bool = True
+    """Once the shot is read, drop the ``split_frames`` readings that split a track, when the split stands:
+    the square was sliding from one person onto the other, and they are partly each (:mod:`.track_split`)."""
     relink_dissimilarity: float = 0.35
     """Largest dissimilarity at which appearance alone finds a lost person again."""
     isolation_iou: float = 0.05

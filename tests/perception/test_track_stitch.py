@@ -47,6 +47,15 @@ def test_a_walker_found_again_where_they_were_heading_is_one_track():
     assert joined[0].masks[15][0, 0] == 15  # the later fragment's masks come along
 
 
+def test_a_fragment_split_off_another_track_brings_its_readings_in_transit_along():
+    # s11 shot 2: a split whose square slid onto a man lost 6 frames before continues his track; the
+    # readings it took in transit are dropped later from the track it joined (track_split.drop_transit).
+    first, second = _walker(0, range(10)), _walker(1, range(13, 21))
+    second.transit = {13, 14, 15}
+    joined = stitch_fragments([first, second], CONFIG)
+    assert len(joined) == 1 and joined[0].transit == {13, 14, 15}
+
+
 def test_a_chain_of_fragments_joins_in_time_order():
     parts = [_walker(2, range(0, 6)), _walker(0, range(8, 14)), _walker(1, range(16, 22))]
     joined = stitch_fragments(parts, CONFIG)
