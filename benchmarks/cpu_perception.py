@@ -109,8 +109,9 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
 
             pred_kp = blazepose33_to_smpl24(np.concatenate([poses.image[..., :2], poses.image[..., 3:4]], -1))
             pred_boxes = padded_landmark_boxes(poses.boxes, (h, w))
-        matched = match_people(pred_boxes, poses.valid, true_boxes, true_tr.valid)
-        counts = detection_counts(matched, eligible, poses.valid)
+        pred_valid = tracks.valid if fit else poses.valid  # the fit drops tracks of no one (floor_check)
+        matched = match_people(pred_boxes, pred_valid, true_boxes, true_tr.valid)
+        counts = detection_counts(matched, eligible, pred_valid)
         tallies += [counts.true_positives, counts.eligible, counts.predictions, counts.false_positives]
         switches += count_id_switches(matched).total
         people, times = np.nonzero((matched >= 0) & eligible)

@@ -88,7 +88,9 @@ def keep_readings(config, body, tracks, path: Path) -> list[dict]:
     for track in tracks:
         shot = list(frames[track.start_frame:track.start_frame + track.valid.shape[1]])
         poses = track_shot(shot, model, settings.tracker, people=people)
-        if not np.array_equal(poses.valid, track.valid):
+        kept = np.isin(poses.track_ids, track.track_ids)  # the stored tracks lack those of no one (floor_check)
+        same = np.array_equal(poses.track_ids[kept], track.track_ids) and np.array_equal(poses.valid[kept], track.valid)
+        if not same:
             raise RuntimeError(f"{config.name}: BlazePose's tracks differ from the stored ones (another CPU's kernels?)")
         readings.append({"poses": poses, "floor": shot_floor_flow(shot, poses, settings),
                          "face": shot_face_evidence(shot, poses, settings)})
@@ -100,15 +102,21 @@ def keep_readings(config, body, tracks, path: Path) -> list[dict]:
 
 
 def refit_tracks(tracks, readings, body, facing) -> list:
-    """The stored tracks with their bodies fitted again under ``facing`` (appearance kept: same masks)."""
+    """The stored tracks with their bodies fitted again under ``facing`` (appearance kept: same masks), for
+    the people both have (the fit drops tracks of no one, :mod:`multithumbs.perception.floor_check`)."""
     from dataclasses import replace
 
     from multithumbs.perception.blazepose_backend import BlazePoseConfig, poses_to_tracks
+    from multithumbs.perception.floor_check import keep_people
 
-    return [replace(poses_to_tracks(r["poses"], k, old.start_frame, old.K, old.image_size, body,
-                                    BlazePoseConfig().fit, facing, r["floor"], r["face"]),
-                    appearance=old.appearance, appearance_valid=old.appearance_valid)
-            for k, (old, r) in enumerate(zip(tracks, readings))]
+    out = []
+    for k, (old, r) in enumerate(zip(tracks, readings)):
+        new = poses_to_tracks(r["poses"], k, old.start_frame, old.K, old.image_size, body, BlazePoseConfig().fit,
+                              facing, r["floor"], r["face"])
+        new = keep_people(new, np.isin(new.track_ids, old.track_ids))
+        rows = [int(np.flatnonzero(old.track_ids == i)[0]) for i in new.track_ids]
+        out.append(replace(new, appearance=old.appearance[rows], appearance_valid=old.appearance_valid[rows]))
+    return out
 
 
 class _Refitted:

@@ -1,0 +1,145 @@
+"""Short tracks whose feet are not on the floor the shot's other people stand on: readings of no one.
+
+BlazePose reads bodies into patterns: a patterned rug, or a whole small body inside the torso of a person
+close to the camera and cut by the frame's edge. On the standard suite's pixels, 5 tracks (45 of 3451
+readings) were more than 100 px from every true person's joints in every frame, and one of them took a
+real person's identity at a cut (``docs/RESULTS.md``, sessions 27 and 28). Neither their masks nor their
+boxes' proportions tell them from people. Where they stand does.
+
+A point on the floor at camera-frame depth ``Z`` and image column ``u`` projects to the row
+``v = a + b / Z + c u`` (the plane ``n · X = d`` seen by a pinhole camera, solved for ``v``: ``c`` is the
+camera's roll, zero for a level one). People standing on one floor put their feet on that surface at the
+depth their fitted body is at. So the shot's readings with visible feet, each with the row of its lowest
+foot, its column and its fitted root's depth, give the floor's ``a, b, c`` (a robust least-squares fit,
+``scipy.optimize.least_squares`` with a soft-L1 loss, on every other track's readings). A reading's
+offset is its foot row's distance from that surface, in units of its own keypoints' height. On the suite,
+the real tracks' median offsets were at most 0.13, the five tracks of no one's 0.32-2.18.
+
+Only short tracks are judged (``max_readings``): a person followed for a long time is a person, and the
+check must not take someone standing on a stair or a stage for a pattern; every track of no one on the
+suite was read in at most 12 frames.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from multithumbs.types import PersonTracks
+
+FOOT_JOINTS: tuple[int, ...] = (7, 8, 10, 11)
+"""SMPL's ankles and feet."""
+
+
+@dataclass(frozen=True)
+class FloorCheckConfig:
+    """Which tracks are judged against the shot's floor, and when they are dropped (module docstring)."""
+
+    enabled: bool = True
+    """Drop the short tracks whose feet are off the floor."""
+    max_readings: int = 24
+    """Tracks read in at most this many frames (1 s at 24 fps) are judged; longer ones are people."""
+    max_offset: float = 0.25
+    """Median offset of a track's feet from the floor, in its keypoints' heights, above which it is dropped
+    (suite: people 0.13 at most, readings of no one 0.32 at least)."""
+    min_floor_readings: int = 20
+    """Readings with visible feet the other tracks need for their floor to be fitted."""
+    min_floor_tracks: int = 2
+    """Other tracks with visible feet the floor needs: one person's readings leave it free to tilt."""
+    min_depth_spread: float = 0.2
+    """Spread of the other readings' inverse depths (max - min, over their median) the floor needs: feet
+    at one depth do not tell how the floor's rows change with depth."""
+    min_column_spread: float = 0.1
+    """Spread of the other readings' foot columns, in image widths, the floor needs (for its roll)."""
+    min_confidence: float = 0.5
+    """Keypoint confidence from which a foot, and a joint of the height, counts as seen."""
+
+
+def foot_readings(tracks: PersonTracks, min_confidence: float
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each reading's lowest seen foot and its keypoints' height.
+
+    Returns:
+        ``rows (P, T)`` and ``columns (P, T)`` of the lowest seen foot, ``heights (P, T)`` of the seen
+        keypoints (pixels), and ``seen (P, T)`` bool: valid, a foot seen and a height of at least a pixel.
+    """
+    kp = tracks.keypoints2d
+    conf = kp[..., 2] > min_confidence
+    feet = conf[..., FOOT_JOINTS]
+    foot_rows = np.where(feet, kp[..., FOOT_JOINTS, 1], -np.inf)
+    lowest = foot_rows.argmax(-1)[..., None]
+    rows = np.take_along_axis(foot_rows, lowest, -1)[..., 0]
+    columns = np.take_along_axis(kp[..., FOOT_JOINTS, 0], lowest, -1)[..., 0]
+    top = np.where(conf, kp[..., 1], np.inf).min(-1)
+    bottom = np.where(conf, kp[..., 1], -np.inf).max(-1)
+    heights = np.where(conf.any(-1), bottom - top, 0.0)
+    seen = tracks.valid & feet.any(-1) & (heights >= 1.0)
+    return (np.where(seen, rows, 0.0), np.where(seen, columns, 0.0), np.where(seen, heights, 0.0), seen)
+
+
+def fit_floor(rows: np.ndarray, depths: np.ndarray, columns: np.ndarray, scale: float) -> np.ndarray:
+    """``(a, b, c)`` of the floor's rows ``v = a + b / Z + c u`` through readings' feet (module docstring).
+
+    Args:
+        rows, depths, columns: ``(N,)`` foot rows (px), root depths (m, positive) and foot columns (px).
+        scale: residual (px) where the soft-L1 loss turns from quadratic to linear.
+    """
+    design = np.stack([np.ones_like(depths), 1.0 / depths, columns], axis=1)
+    start = np.linalg.lstsq(design, rows, rcond=None)[0]
+    result = least_squares(lambda x: design @ x - rows, start, loss="soft_l1", f_scale=scale, method="trf")
+    return result.x
+
+
+def _spans_a_floor(others: np.ndarray, depths: np.ndarray, columns: np.ndarray, width: int,
+                   config: FloorCheckConfig) -> bool:
+    """Whether the readings ``others (P, T)`` are enough, and spread enough, to fit a floor to."""
+    if others.sum() < config.min_floor_readings or others.any(1).sum() < config.min_floor_tracks:
+        return False
+    inverse = 1.0 / depths[others]
+    spread = (inverse.max() - inverse.min()) / np.median(inverse)
+    return bool(spread >= config.min_depth_spread and np.ptp(columns[others]) >= config.min_column_spread * width)
+
+
+def floor_offsets(tracks: PersonTracks, config: FloorCheckConfig = FloorCheckConfig()) -> np.ndarray:
+    """``(P,)`` each short track's median offset of its feet from the floor the other tracks stand on, in
+    its keypoints' heights (signed: positive below it); NaN for a track not judged (long, no feet seen,
+    the others' readings too few or too close together to fit a floor to)."""
+    rows, columns, heights, seen = foot_readings(tracks, config.min_confidence)
+    depths = tracks.transl[..., 2]
+    seen &= depths > 0
+    offsets = np.full(tracks.num_people, np.nan)
+    for p in range(tracks.num_people):
+        if not seen[p].any() or tracks.valid[p].sum() > config.max_readings:
+            continue
+        others = seen.copy()
+        others[p] = False
+        if not _spans_a_floor(others, depths, columns, tracks.image_size[1], config):
+            continue
+        floor = fit_floor(rows[others], depths[others], columns[others], 0.05 * float(np.median(heights[others])))
+        mine = seen[p]
+        predicted = floor[0] + floor[1] / depths[p, mine] + floor[2] * columns[p, mine]
+        offsets[p] = float(np.median((rows[p, mine] - predicted) / heights[p, mine]))
+    return offsets
+
+
+def keep_people(tracks: PersonTracks, keep: np.ndarray) -> PersonTracks:
+    """``tracks`` with only the people where ``keep (P,)`` is true."""
+    keep = np.asarray(keep, bool)
+    per_person = ("track_ids", "global_orient", "body_pose", "betas", "transl", "keypoints2d", "masks",
+                  "appearance", "appearance_valid", "valid")
+    return dataclasses.replace(tracks, **{name: getattr(tracks, name)[keep] for name in per_person})
+
+
+def drop_off_floor(tracks: PersonTracks, config: FloorCheckConfig = FloorCheckConfig()) -> PersonTracks:
+    """``tracks`` without the short tracks whose feet are off the floor (module docstring)."""
+    if not config.enabled or tracks.num_people < 2:
+        return tracks
+    offsets = floor_offsets(tracks, config)
+    return keep_people(tracks, ~(np.abs(offsets) > config.max_offset))
+
+
+__all__ = ["FloorCheckConfig", "FOOT_JOINTS", "foot_readings", "fit_floor", "floor_offsets", "keep_people",
+           "drop_off_floor"]
