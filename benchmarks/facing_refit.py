@@ -89,8 +89,8 @@ def keep_readings(config, body, tracks, path: Path) -> list[dict]:
         shot = list(frames[track.start_frame:track.start_frame + track.valid.shape[1]])
         poses = track_shot(shot, model, settings.tracker, people=people)
         kept = np.isin(poses.track_ids, track.track_ids)  # the stored tracks lack those of no one (floor_check)
-        same = np.array_equal(poses.track_ids[kept], track.track_ids) and np.array_equal(poses.valid[kept], track.valid)
-        if not same:
+        if not (np.array_equal(poses.track_ids[kept], track.track_ids)
+                and np.array_equal(poses.valid[kept], track.valid)):
             raise RuntimeError(f"{config.name}: BlazePose's tracks differ from the stored ones (another CPU's kernels?)")
         readings.append({"poses": poses, "floor": shot_floor_flow(shot, poses, settings),
                          "face": shot_face_evidence(shot, poses, settings)})

@@ -4,8 +4,8 @@ BlazePose reads bodies into patterns: a patterned rug, or a whole small body ins
 close to the camera and cut by the frame's edge. On the standard suite's pixels, 5 tracks (45 of 3451
 readings) were more than 100 px from every true person's joints in every frame; a real person took one's
 identity at a cut, and another gave its id to the person whose torso it was in (``docs/RESULTS.md``,
-sessions 27 and 28). Neither their masks nor their
-boxes' proportions tell them from people. Where they stand does.
+sessions 27 and 28). Neither their masks nor their boxes' proportions tell them from people. Where they
+stand does.
 
 A point on the floor at camera-frame depth ``Z`` and image column ``u`` projects to the row
 ``v = a + b / Z + c u`` (the plane ``n · X = d`` seen by a pinhole camera, solved for ``v``: ``c`` is the

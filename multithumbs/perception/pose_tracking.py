@@ -77,7 +77,7 @@ class _Track:
     fits: list = field(default_factory=list)  # the model's dissimilarity to the last 5 readings that fitted it as usual (track_split)
     split_from: "_Track | None" = None  # the track this one was split from, while it may still be merged back
     alike: int = 0  # this track's latest readings in a row that fit ``split_from``'s model well
-    transit: set = field(default_factory=set)  # frames read while a split's square slid onto this person (track_split)
+    transit: set = field(default_factory=set)  # frames a split read in transit, dropped at the end (track_split)
 
     @property
     def box(self) -> np.ndarray:

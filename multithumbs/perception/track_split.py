@@ -20,11 +20,11 @@ and a track that moved onto someone else stayed whole). So a fit more than ``spl
 one is not taken into it (:func:`remember_fit`).
 
 The streak a split takes is the square in transit: its readings are partly the old person and partly the
-new one (the standard suite's s11, shot 2: a square that slid from the woman in pink onto the man in green
-read her legs under his head for the 3 frames of the streak, 21-32 px from his joints against 8-10 after).
-Once the shot is read, a split that stands keeps its track but not those frames (``drop_transit``,
-:func:`drop_transit`): a body fitted to them is neither person, and the evaluation's box around it matched
-the woman, under the man's id.
+new one (the standard suite's s11, shot 2: a square that slid from the person in pink trousers onto the
+person in the green top read the first's legs under the second's head for the 3 frames of the streak,
+21-32 px from the second's joints against 8-10 after). Once the shot is read, a split that stands keeps its
+track but not those frames (``drop_transit``, :func:`drop_transit`): a body fitted to them is neither
+person, and the evaluation's box around it matched the first person, under the second's id.
 """
 
 from __future__ import annotations
