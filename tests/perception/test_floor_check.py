@@ -85,9 +85,10 @@ def _with_pattern(long: bool = False) -> PersonTracks:
 
 def test_a_short_track_whose_feet_are_off_the_floor_is_dropped():
     tracks = _with_pattern()
-    offsets = floor_offsets(tracks)
+    offsets, scatters = floor_offsets(tracks)
     assert np.isnan(offsets[:3]).all()  # people followed for longer than max_readings are not judged
     assert offsets[3] > 0.25  # its feet are far below (positive) where a body 9 m away stands
+    assert scatters[3] < 1e-6  # the walkers' feet are exactly on the floor
     kept = drop_off_floor(tracks)
     assert kept.track_ids.tolist() == [10, 11, 12]
     np.testing.assert_array_equal(kept.keypoints2d, tracks.keypoints2d[:3])
@@ -98,14 +99,14 @@ def test_short_tracks_of_people_on_the_floor_are_kept():
     short = np.zeros(30, bool)
     short[10:20] = True
     tracks = _tracks(keypoints, transl, [np.ones(30, bool), short, np.ones(30, bool)])
-    assert abs(floor_offsets(tracks)[1]) < 1e-6
+    assert abs(floor_offsets(tracks)[0][1]) < 1e-6
     assert drop_off_floor(tracks).track_ids.tolist() == [10, 11, 12]
 
 
 def test_long_tracks_and_floors_with_too_few_readings_are_not_judged():
     assert drop_off_floor(_with_pattern(long=True)).num_people == 4
     config = dataclasses.replace(FloorCheckConfig(), min_floor_readings=91)  # the others have 90
-    assert np.isnan(floor_offsets(_with_pattern(), config)).all()
+    assert np.isnan(floor_offsets(_with_pattern(), config)[0]).all()
     assert drop_off_floor(_with_pattern(), dataclasses.replace(FloorCheckConfig(), enabled=False)).num_people == 4
 
 
@@ -120,9 +121,32 @@ def test_keep_people_keeps_every_per_person_field():
 def test_a_floor_is_not_fitted_to_one_person_or_to_feet_at_one_depth():
     tracks = _with_pattern()
     one_person = keep_people(tracks, np.array([True, False, False, True]))
-    assert np.isnan(floor_offsets(one_person)).all()
+    assert np.isnan(floor_offsets(one_person)[0]).all()
     # Everyone else standing still at one depth: nothing says how the floor's rows change with depth.
     still = dataclasses.replace(tracks, keypoints2d=np.concatenate(
         [np.repeat(tracks.keypoints2d[:3, :1], 30, axis=1), tracks.keypoints2d[3:]]),
         transl=np.concatenate([np.tile([0.0, 0.0, 5.0], (3, 30, 1)), tracks.transl[3:]]))
-    assert np.isnan(floor_offsets(still)[3])
+    assert np.isnan(floor_offsets(still)[0][3])
+
+
+
+def test_a_floor_the_others_fit_loosely_drops_no_one():
+    # vtest.avi: pedestrians on grass and paths, small and far, scatter about one floor by 0.29 of their
+    # heights, and a real walker there, read for 6 frames, was 0.44 off it.
+    keypoints, transl, _ = _walkers()
+    heights = np.stack([kp[..., 1].max(-1) - kp[..., 1].min(-1) for kp in keypoints])  # (3, T)
+    off = keypoints[1].copy()
+    off[:, list(FOOT_JOINTS), 1] -= (0.45 * heights[1])[:, None]
+    short = np.zeros(30, bool)
+    short[10:16] = True
+    valid = [np.ones(30, bool)] * 3 + [short]
+    flat = _tracks(keypoints + [off], transl + [transl[1]], valid)
+    assert drop_off_floor(flat).num_people == 3  # on a floor the others fit exactly, 0.45 off is dropped
+    rng = np.random.default_rng(1)
+    bumpy = [kp.copy() for kp in keypoints]
+    for kp, h in zip(bumpy, heights):
+        kp[:, list(FOOT_JOINTS), 1] += (0.3 * h * rng.standard_normal(h.shape))[:, None]
+    loose = _tracks(bumpy + [off], transl + [transl[1]], valid)
+    offsets, scatters = floor_offsets(loose)
+    assert abs(offsets[3]) > 0.25 and abs(offsets[3]) < 5 * scatters[3]
+    assert drop_off_floor(loose).num_people == 4
