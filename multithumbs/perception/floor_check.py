@@ -126,6 +126,7 @@ def floor_offsets(tracks: PersonTracks, config: FloorCheckConfig = FloorCheckCon
     rows, columns, heights, seen = foot_readings(tracks, config.min_confidence)
     depths = tracks.transl[..., 2]
     seen &= depths > 0
+    depths, heights = np.where(seen, depths, 1.0), np.where(seen, heights, 1.0)  # no division by 0 where unseen
     offsets, scatters = np.full(tracks.num_people, np.nan), np.full(tracks.num_people, np.nan)
     for p in range(tracks.num_people):
         if not seen[p].any() or tracks.valid[p].sum() > config.max_readings:
@@ -135,9 +136,7 @@ def floor_offsets(tracks: PersonTracks, config: FloorCheckConfig = FloorCheckCon
         if not _spans_a_floor(others, depths, columns, tracks.image_size[1], config):
             continue
         floor = fit_floor(rows[others], depths[others], columns[others], 0.05 * float(np.median(heights[others])))
-
-        offset = (rows - (floor[0] + floor[1] / np.where(seen, depths, 1.0) + floor[2] * columns)) / np.where(
-            seen, heights, 1.0)
+        offset = (rows - (floor[0] + floor[1] / depths + floor[2] * columns)) / heights
         theirs = offset[others]
         offsets[p] = float(np.median(offset[p, seen[p]]))
         scatters[p] = float(1.4826 * np.median(np.abs(theirs - np.median(theirs))))
