@@ -31,23 +31,23 @@ import numpy as np
 
 
 def config_overrides(cls, text: str | None, flag: str) -> dict[str, float | bool]:
-    """``name=value,...`` as keyword arguments of the dataclass ``cls``, each of its field's type."""
+    """``name=value,...`` as keyword arguments of the dataclass ``cls``, each of its field's type (parsed as
+    ``multithumbs run --set`` parses, :func:`multithumbs.overrides.parse_assignments`)."""
     from multithumbs.errors import InputError
+    from multithumbs.overrides import parse_assignments
 
     defaults = {name: f.default for name, f in cls.__dataclass_fields__.items()
                 if isinstance(f.default, bool | int | float)}
     out: dict[str, float | bool] = {}
-    for item in filter(None, (text or "").split(",")):
-        name, _, value = (part.strip() for part in item.partition("="))
-        if name not in defaults or not value:
+    for item in filter(None, (part.strip() for part in (text or "").split(","))):
+        name, _, text_value = (part.strip() for part in item.partition("="))
+        if name not in defaults or not text_value:
             raise InputError(f"{flag} {item!r}: expected name=value with a name of {', '.join(sorted(defaults))}")
+        value = parse_assignments([f"{name}={text_value}"], flag)[name]
         kind = type(defaults[name])  # bool, int or float, as the field's default
-        if kind is bool and value.lower() not in ("true", "false"):
-            raise InputError(f"{flag} {item!r}: {value!r} is not true or false")
-        try:
-            out[name] = value.lower() == "true" if kind is bool else kind(value)
-        except ValueError:
-            raise InputError(f"{flag} {item!r}: {value!r} is not a {kind.__name__}") from None
+        if type(value) is not kind and not (kind is float and type(value) is int):
+            raise InputError(f"{flag} {item!r}: {value!r} is not a {kind.__name__}")
+        out[name] = value
     return out
 
 

@@ -1,3 +1,5 @@
+import dataclasses
+
 import numpy as np
 
 from multithumbs.method.align import AlignConfig, align_boundary, point_maps
@@ -44,7 +46,6 @@ def test_alignment_recovers_a_known_offset_and_scale(tiny, body):
 
 
 def test_a_cut_with_nobody_on_one_side_is_a_documented_outcome(tiny, body):
-    import dataclasses
     empty = dataclasses.replace(tiny.tracks[1], valid=np.zeros_like(tiny.tracks[1].valid))
     people = boundary_people(tiny.tracks[0], empty, body)
     aligned = align_boundary(people, tiny.spaces[0], AlignConfig(iterations=(0, 20, 20)))
@@ -244,7 +245,6 @@ def test_a_root_moved_far_from_the_estimators_depth_is_put_back(tiny, body):
 
 
 def test_people_whose_size_is_off_do_not_drag_a_camera_the_scene_registered(tiny, body):
-    import dataclasses
     people = boundary_people(tiny.tracks[0], tiny.tracks[1], body)
     # The second side's bodies estimated 15 % too small, as a monocular fit misjudges a person's size: their
     # 2D keypoints and their depth in the scene cannot both be met, and freeing the camera would trade them.
