@@ -8,7 +8,8 @@ The ``blazepose`` perception source (the default of ``multithumbs run``). For ea
    world landmarks the matching 3D joints (:func:`multithumbs.perception.joints.blazepose33_to_smpl24`);
 3. :func:`multithumbs.perception.body_fit.fit_bodies` fits the body model to both in the scene's
    intrinsics, batched over the shot's people and frames;
-4. each track's readings are labelled front or back by where the fitted root walks, whether the head
+4. a reading whose hips and shoulders face opposite ways has its hips and legs mirrored onto the
+   shoulders' side; each track's readings are labelled front or back by where the fitted root walks, whether the head
    shows a face or hair (:mod:`.head_colour`) and how slowly bodies turn; the frames taken for
    BlazePose's front/back confusion are mirrored, every walker's reading is turned about its trunk
    towards the walk, and the shot is fitted again (:mod:`.facing`); the walk is read with the camera's
@@ -23,7 +24,7 @@ source (:mod:`.appearance`). Frames where a person was not followed stay invalid
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterable
 
@@ -33,7 +34,7 @@ from multithumbs.appearance import DESCRIPTOR_SIZE
 from multithumbs.errors import InputError
 from multithumbs.perception.body_fit import BodyFitConfig, FittedBodies, fit_bodies
 from multithumbs.perception.facing import (HIP_LANDMARKS, FacingConfig, facing_flips, legs_seen, mirrored,
-                                           root_velocity, walk_headings)
+                                           root_velocity, untwisted, walk_headings)
 from multithumbs.perception.floor_check import FloorCheckConfig, drop_off_floor
 from multithumbs.perception.ground_motion import GroundMotionConfig, ground_flow, static_velocity
 from multithumbs.perception.head_colour import HeadColourConfig, face_evidence, head_samples
@@ -151,6 +152,9 @@ def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.n
 
         body = load_body_model()
     config = config or BlazePoseConfig().fit
+    image, world, twists = untwisted(poses.image, poses.world, poses.valid, facing)
+    if twists.any():
+        poses = replace(poses, image=image, world=world)
     keypoints, fitted = _fit(poses.image, poses.world, poses.valid, K, body, config)
     walk, judged = read_walk(poses, fitted, facing, K, floor_flow)
     # The head's colours, like the walk, count on whole bodies only: on Megamind.avi's close-ups the crown,

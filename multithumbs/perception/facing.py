@@ -6,6 +6,15 @@ takes a back for a front: it then names the right shoulder "left" (and every oth
 the limbs' depths on the wrong side of the hips. Its visibility does not flag it. On the suite's
 faceless people these frames are most of the 2D error (``docs/RESULTS.md``, issue 16).
 
+A reading can also be half right: on close-ups and people cut by the frame's foot, BlazePose sometimes
+reads the shoulders from the back and the hips from the front (hips and shoulders 100-180° apart, where a
+trunk twists 60° at most). :func:`untwisted` mirrors such a reading's hips and legs onto the shoulders'
+side first, so that the reading and its mirror below are each a whole body. The shoulders were the right
+half in 24 of the suite's 43 such readings, the hips in 13; which half is mirrored decides only which of
+the two whole readings is BlazePose's own, since the labelling chooses between them. Left twisted, the
+fit's first orientation follows the shoulders and its smoothness carries the turn to the neighbouring
+frames: s09's first track faced 50-98° off over its first six frames, whose readings were within 30°.
+
 Each frame of a track has two readings, BlazePose's and its mirror (sides swapped, depths relative to
 the hips negated), and each reading faces a way (:func:`reading_forward`). The labelling of a track
 is the cheapest path through them (Viterbi, :func:`facing_flips`):
@@ -51,6 +60,9 @@ BLAZEPOSE_MIRROR: tuple[int, ...] = (0, 4, 5, 6, 1, 2, 3, 8, 7, 10, 9, 12, 11, 1
 9 / 10; then shoulders, elbows, wrists, pinkies, index fingers, thumbs, hips, knees, ankles, heels and
 foot tips in left / right pairs from 11 / 12 to 31 / 32)."""
 
+LOWER_BODY: tuple[int, ...] = tuple(range(23, 33))
+"""BlazePose's hips, knees, ankles, heels and foot tips: the half of a twisted reading that is mirrored."""
+
 
 @dataclass(frozen=True)
 class FacingConfig:
@@ -88,6 +100,10 @@ class FacingConfig:
     and s03's first shots, where the readings were 20.8° off (17.3°, 39.5°)."""
     reading_sigma_deg: float = 25.0
     """Spread of BlazePose's reading's facing about the body's (degrees), once labelled front or back."""
+    max_twist_deg: float = 90.0
+    """A reading whose hips and shoulders face further apart than this about the trunk is twisted
+    (:func:`untwisted`); a trunk twists 45-60° at most. Over the suite's tracks (3447 person-frames) the
+    angle's 95th percentile was 42.6° and its 99th 100.7°; 43 readings passed 90°."""
     face_weight: float = 0.5
     """Weight of the head's colours (:func:`.head_colour.face_evidence`, in [-1, 1]) per frame: a reading
     facing the camera (its forward's depth component -1) where the head shows a face gains this much, one
@@ -95,13 +111,16 @@ class FacingConfig:
     (BlazePose's own reading: 68 %)."""
 
 
-def mirrored(image: np.ndarray, world: np.ndarray, flip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def mirrored(image: np.ndarray, world: np.ndarray, flip: np.ndarray,
+             landmarks: tuple[int, ...] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """BlazePose's landmarks with the frames ``flip`` marks replaced by their mirror reading.
 
     Args:
         image: ``(..., 33, C>=3)`` pixel u, v, relative depth z, then any per-landmark scores.
         world: ``(..., 33, 3)`` metres, origin between the hips, camera-aligned axes.
         flip: ``(...)`` bool.
+        landmarks: mirror only these (closed under the exchange of sides, as :data:`LOWER_BODY`); all
+            when None.
     Returns:
         ``(image, world)`` copies: in flipped frames the sides are exchanged (positions and scores go with
         the anatomical name), and depth z is negated relative to the hips (world) or to the landmarks'
@@ -109,16 +128,51 @@ def mirrored(image: np.ndarray, world: np.ndarray, flip: np.ndarray) -> tuple[np
     """
     image, world = np.array(image, dtype=np.float64), np.array(world, dtype=np.float64)
     flip = np.asarray(flip, bool)
-    swapped_image = image[..., list(BLAZEPOSE_MIRROR), :]
-    hips_z = 0.5 * (swapped_image[..., 23:24, 2] + swapped_image[..., 24:25, 2])
-    swapped_image[..., 2] = 2 * hips_z - swapped_image[..., 2]
+    order, changed = _mirror_order(landmarks)
+    swapped_image = image[..., order, :]
+    hips_z = 0.5 * (image[..., 23:24, 2] + image[..., 24:25, 2])  # the exchange leaves it alone
+    swapped_image[..., 2] = np.where(changed, 2 * hips_z - swapped_image[..., 2], swapped_image[..., 2])
     return (np.where(flip[..., None, None], swapped_image, image),
-            np.where(flip[..., None, None], mirror_world(world), world))
+            np.where(flip[..., None, None], mirror_world(world, landmarks), world))
 
 
-def mirror_world(world: np.ndarray) -> np.ndarray:
-    """The mirror reading of world landmarks ``(..., 33, 3)`` (hip-centred): sides exchanged, depth negated."""
-    return np.asarray(world, dtype=np.float64)[..., list(BLAZEPOSE_MIRROR), :] * np.array([1.0, 1.0, -1.0])
+def mirror_world(world: np.ndarray, landmarks: tuple[int, ...] | None = None) -> np.ndarray:
+    """The mirror reading of world landmarks ``(..., 33, 3)`` (hip-centred): sides exchanged, depth negated
+    (of ``landmarks`` only, when given)."""
+    order, changed = _mirror_order(landmarks)
+    mirror = np.asarray(world, dtype=np.float64)[..., order, :]
+    mirror[..., changed, 2] *= -1.0
+    return mirror
+
+
+def _mirror_order(landmarks: tuple[int, ...] | None) -> tuple[list[int], np.ndarray]:
+    """The landmark order of the mirror of ``landmarks`` (all when None) and the ``(33,)`` mask it changes."""
+    index = np.arange(len(BLAZEPOSE_MIRROR))
+    changed = np.ones(index.size, bool) if landmarks is None else np.isin(index, landmarks)
+    return [BLAZEPOSE_MIRROR[i] if changed[i] else i for i in index], changed
+
+
+def twisted(world: np.ndarray, max_twist_deg: float) -> np.ndarray:
+    """``(...)`` bool: readings ``world (..., 33, 3)`` whose hips and shoulders face more than
+    ``max_twist_deg`` apart about the trunk (each half's forward: across it, crossed with the trunk's up)."""
+    world = np.asarray(world, dtype=np.float64)
+    up = trunk_up(world)
+    hips = np.cross(world[..., 23, :] - world[..., 24, :], up)
+    shoulders = np.cross(world[..., 11, :] - world[..., 12, :], up)
+    norms = np.linalg.norm(hips, axis=-1) * np.linalg.norm(shoulders, axis=-1)
+    return (hips * shoulders).sum(-1) < np.cos(np.radians(max_twist_deg)) * norms
+
+
+def untwisted(image: np.ndarray, world: np.ndarray, valid: np.ndarray,
+              config: FacingConfig = FacingConfig()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """BlazePose's landmarks ``image (..., 33, C)``, ``world (..., 33, 3)`` with each valid reading whose
+    halves face opposite ways (:func:`twisted`) made whole: its hips and legs mirrored onto the shoulders'
+    side (module docstring). Returns the two and the ``(...)`` frames changed; none when the labelling is
+    off."""
+    twist = np.asarray(valid, bool) & twisted(world, config.max_twist_deg) if config.enabled else \
+        np.zeros(np.shape(valid), bool)
+    image, world = mirrored(image, world, twist, LOWER_BODY)
+    return image, world, twist
 
 
 def body_forward(joints: np.ndarray) -> np.ndarray:
@@ -267,6 +321,6 @@ def legs_seen(image: np.ndarray, min_visibility: float, landmarks: tuple[int, ..
     return np.asarray(image)[..., list(landmarks), 3].min(-1) >= min_visibility
 
 
-__all__ = ["LEG_LANDMARKS", "HIP_LANDMARKS", "legs_seen", "trunk_up", "reading_forward", "BLAZEPOSE_MIRROR",
-           "FacingConfig", "mirrored", "mirror_world", "body_forward", "root_velocity", "facing_flips",
-           "walk_headings"]
+__all__ = ["LEG_LANDMARKS", "HIP_LANDMARKS", "LOWER_BODY", "legs_seen", "trunk_up", "reading_forward",
+           "BLAZEPOSE_MIRROR", "FacingConfig", "mirrored", "mirror_world", "twisted", "untwisted", "body_forward",
+           "root_velocity", "facing_flips", "walk_headings"]

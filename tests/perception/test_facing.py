@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 import torch
 
-from multithumbs.perception.facing import (BLAZEPOSE_MIRROR, FacingConfig, body_forward, facing_flips, legs_seen,
-                                           mirrored, reading_forward, root_velocity, walk_headings)
+from multithumbs.perception.facing import (BLAZEPOSE_MIRROR, LOWER_BODY, FacingConfig, body_forward, facing_flips,
+                                           legs_seen, mirrored, reading_forward, root_velocity, twisted, untwisted,
+                                           walk_headings)
 from multithumbs.perception.joints import BLAZEPOSE33_TO_SMPL24
 from multithumbs.perception.pose_tracking import ShotPoses
 
@@ -31,6 +32,61 @@ def test_mirror_exchanges_sides_and_is_its_own_inverse():
     np.testing.assert_array_equal(once[1][p, t, 11, :2], world[p, t, 12, :2])   # left shoulder <- right's
     assert once[1][p, t, 11, 2] == -world[p, t, 12, 2]                           # depth through the hips
     np.testing.assert_array_equal(once[0][p, t, 11, 3:], image[p, t, 12, 3:])    # scores go with the name
+
+
+def test_mirroring_the_lower_body_exchanges_its_sides_only_and_the_upper_half_completes_the_mirror():
+    rng = np.random.default_rng(1)
+    image, world = rng.normal(size=(4, 33, 5)), rng.normal(size=(4, 33, 3))
+    world -= 0.5 * (world[:, 23:24] + world[:, 24:25])   # hip-centred, as BlazePose's world landmarks
+    flip = np.array([True, False, True, True])
+    upper = tuple(i for i in range(33) if i not in LOWER_BODY)
+    lower_image, lower_world = mirrored(image, world, flip, LOWER_BODY)
+    np.testing.assert_array_equal(lower_world[:, :23], world[:, :23])               # the upper half untouched
+    np.testing.assert_array_equal(lower_image[:, :23], image[:, :23])
+    np.testing.assert_array_equal(lower_world[1], world[1])                         # frames not flipped
+    np.testing.assert_array_equal(lower_world[0, 25, :2], world[0, 26, :2])         # left knee <- right's
+    assert lower_world[0, 25, 2] == -world[0, 26, 2]
+    np.testing.assert_array_equal(lower_image[0, 25, 3:], image[0, 26, 3:])
+    whole = mirrored(image, world, flip)
+    both = mirrored(lower_image, lower_world, flip, upper)
+    np.testing.assert_allclose(both[0], whole[0], atol=1e-12)
+    np.testing.assert_allclose(both[1], whole[1], atol=1e-12)
+
+
+def _twisted_by(degrees: float) -> np.ndarray:
+    """Landmarks of an upright person facing away (+z) whose shoulders are turned by ``degrees`` about
+    the vertical through the hips."""
+    world = _world_facing(np.ones(1))[0]
+    world[[11, 12]] = _yawed(world[[11, 12]], degrees)
+    return world
+
+
+@pytest.mark.parametrize("degrees, expected", [(0.0, False), (60.0, False), (-85.0, False), (95.0, True),
+                                               (-120.0, True), (180.0, True)])
+def test_a_reading_is_twisted_when_its_hips_and_shoulders_face_apart(degrees, expected):
+    world = _twisted_by(degrees)
+    assert twisted(world, 90.0) == expected
+    world[:, 1] += 0.1 * world[:, 0]   # a leaning trunk: the angle is read about the trunk, not the camera's y
+    assert twisted(world, 90.0) == expected
+    assert twisted(np.stack([_twisted_by(0.0), _twisted_by(180.0)]), 90.0).tolist() == [False, True]
+
+
+def test_untwisting_turns_the_hips_to_the_shoulders_side_in_valid_twisted_frames_only():
+    world = np.stack([_twisted_by(180.0), _twisted_by(180.0), _twisted_by(20.0)])[None]   # (1, 3, 33, 3)
+    image = np.zeros((1, 3, 33, 5))
+    image[..., 0] = np.arange(33)                      # each landmark's u names it
+    valid = np.array([[True, False, True]])
+    new_image, new_world, changed = untwisted(image, world, valid)
+    assert changed.tolist() == [[True, False, False]]
+    # The hips face away (+z) and the shoulders, turned half a circle, the camera: the hips turn to them.
+    assert reading_forward(world[0, 0]) @ np.array([0, 0, 1.0]) > 0.99
+    assert reading_forward(new_world[0, 0]) @ np.array([0, 0, 1.0]) < -0.99
+    assert not twisted(new_world[0, 0], 90.0)
+    assert new_image[0, 0, 23, 0] == 24 and new_image[0, 0, 11, 0] == 11
+    np.testing.assert_array_equal(new_world[0, 1:], world[0, 1:])
+    off = untwisted(image, world, valid, FacingConfig(enabled=False))
+    np.testing.assert_array_equal(off[1], world)
+    assert not off[2].any()
 
 
 def test_forward_of_a_body_at_rest_is_its_plus_z(body):
@@ -274,3 +330,24 @@ def test_a_standing_back_read_as_a_front_follows_the_head_on_whole_bodies_only(b
         joints = body.joints(tracks.global_orient, tracks.body_pose, tracks.betas, tracks.transl).double().numpy()
     facing_z = body_forward(joints)[0, :, 2]
     assert (facing_z > 0.5).all() if whole_body else (facing_z < -0.5).all()
+
+
+def test_a_reading_whose_hips_face_the_camera_under_a_back_is_fitted_as_a_back(body):
+    from multithumbs.perception.blazepose_backend import poses_to_tracks
+
+    # Truth: seen from behind, walking away. In three of the first frames the reading's hips and legs are
+    # a front's (s09's first track, docs/RESULTS.md session 29): twisted half a turn under the shoulders.
+    transl = np.stack([np.zeros(16), np.full(16, 0.3), 4.0 + 0.04 * np.arange(16)], -1)
+    reading = _reading(body, UPRIGHT_FACING_AWAY, transl)
+    twist = np.zeros((1, 16), bool)
+    twist[0, [1, 2, 4]] = True
+    image, world = mirrored(reading.image, reading.world, twist, LOWER_BODY)
+    reading.image[...], reading.world[...] = image, world
+    errors = {}
+    for max_twist in (90.0, 180.0):   # 180: never twisted
+        tracks = poses_to_tracks(reading, 0, 0, K, (360, 640), body, facing=FacingConfig(max_twist_deg=max_twist))
+        with torch.no_grad():
+            joints = body.joints(tracks.global_orient, tracks.body_pose, tracks.betas, tracks.transl).double().numpy()
+        errors[max_twist] = np.abs(_signed_yaw(body_forward(joints)[0], np.array([0.0, 0.0, 1.0])))
+    assert errors[90.0].max() < 10
+    assert errors[180.0][[1, 2, 4]].min() > 3 * errors[90.0][[1, 2, 4]].max()
