@@ -33,8 +33,8 @@ import numpy as np
 from multithumbs.appearance import DESCRIPTOR_SIZE
 from multithumbs.errors import InputError
 from multithumbs.perception.body_fit import BodyFitConfig, FittedBodies, fit_bodies
-from multithumbs.perception.facing import (HIP_LANDMARKS, FacingConfig, facing_flips, legs_seen, mirrored,
-                                           root_velocity, untwisted, walk_headings)
+from multithumbs.perception.facing import (HIP_LANDMARKS, SHOULDER_LANDMARKS, FacingConfig, body_seen, facing_flips,
+                                           landmarks_seen, mirrored, root_velocity, untwisted, walk_headings)
 from multithumbs.perception.floor_check import FloorCheckConfig, drop_off_floor
 from multithumbs.perception.ground_motion import GroundMotionConfig, ground_flow, static_velocity
 from multithumbs.perception.head_colour import HeadColourConfig, face_evidence, head_samples
@@ -100,11 +100,13 @@ def _fit(image: np.ndarray, world: np.ndarray, valid: np.ndarray, K: np.ndarray,
 
 
 def read_walk(poses: ShotPoses, fitted: FittedBodies, config: FacingConfig, K: np.ndarray | None = None,
-              floor_flow: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+              floor_flow: np.ndarray | None = None, image_size: tuple[int, int] | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
     """The walk ``(P, T, 3)`` (the first fit's root motion per frame over every valid frame, less the motion
     of a static point there when the floor's shift ``floor_flow (P, T, 2)``,
-    :func:`.ground_motion.ground_flow`, and ``K`` are given) and the ``(P, T)`` frames it judges."""
-    judged = legs_seen(poses.image, config.min_leg_visibility)
+    :func:`.ground_motion.ground_flow`, and ``K`` are given) and the ``(P, T)`` frames it judges
+    (:func:`.facing.body_seen`, inside the image when its ``(H, W)`` is given)."""
+    judged = body_seen(poses.image, config.min_leg_visibility, image_size)
     walk = root_velocity(fitted.transl, poses.valid, config.window)
     if floor_flow is not None and K is not None:
         walk = walk - static_velocity(floor_flow, fitted.transl, poses.valid, K, config.window)
@@ -117,8 +119,12 @@ def mirror_flips(poses: ShotPoses, walk: np.ndarray, judged: np.ndarray, config:
     (:func:`shot_face_evidence`) and the turns take for a back seen as a front (step 4)."""
     if not config.enabled or not poses.valid.any():
         return np.zeros(poses.valid.shape, bool)
-    linked = poses.valid & legs_seen(poses.image, config.min_hip_visibility, HIP_LANDMARKS)
-    return facing_flips(poses.world, walk, linked, judged, config, face)
+    hips = landmarks_seen(poses.image, config.min_hip_visibility, HIP_LANDMARKS)
+    if config.link_shoulders:
+        linked = poses.valid & (hips | landmarks_seen(poses.image, config.min_hip_visibility, SHOULDER_LANDMARKS))
+    else:
+        linked = poses.valid & hips
+    return facing_flips(poses.world, walk, linked, judged, config, face, hips)
 
 
 def shot_floor_flow(frames, poses: ShotPoses, config: BlazePoseConfig) -> np.ndarray | None:
@@ -156,7 +162,7 @@ def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.n
     if twists.any():
         poses = replace(poses, image=image, world=world)
     keypoints, fitted = _fit(poses.image, poses.world, poses.valid, K, body, config)
-    walk, judged = read_walk(poses, fitted, facing, K, floor_flow)
+    walk, judged = read_walk(poses, fitted, facing, K, floor_flow, image_size)
     # The head's colours, like the walk, count on whole bodies only: on Megamind.avi's close-ups the crown,
     # placed by the neck's length, fell on foreheads and the cue relabelled 29 of 422 person-frames.
     flips = mirror_flips(poses, walk, judged, facing, None if face is None else np.where(judged, face, 0.0))

@@ -88,9 +88,16 @@ class FacingConfig:
     """Frames either side of a frame whose fitted roots give its motion."""
     min_hip_visibility: float = 0.5
     """Visibility both hips need for a frame to be labelled (its reading's forward is read across them)."""
+    link_shoulders: bool = True
+    """Also label frames whose hips are unseen but shoulders seen (``min_hip_visibility``), their facing read
+    across the shoulders: the turn cost carries the labels of the track's other frames to them."""
     min_leg_visibility: float = 0.5
-    """Visibility every hip, knee and ankle landmark needs for the walk to judge the frame: a walk is read
-    from a whole body; close-ups (faces and shoulders, whose fitted depth wanders) give no evidence."""
+    """Visibility both hips and one leg's knee and ankle need, inside the image, for the walk to judge the
+    frame (:func:`body_seen`): a walk is read from a body seen to its feet; close-ups (faces and shoulders,
+    whose fitted depth wanders) give no evidence. One leg, not both: a person seen side-on hides the far
+    one (s08's first track, standing then walking, faced 160° off for 25 frames when both were asked for).
+    Inside the image: BlazePose gives ankles below the frame a visibility, and on Megamind.avi's waist-up
+    shots one leg "seen" anywhere turned 41 of 422 person-frames away from the camera, against 17."""
     heading: bool = True
     """Also turn each judged reading about its trunk towards the walk (:func:`walk_headings`): BlazePose's
     yaw of a body seen from behind or obliquely is often 60-85° off where the walk is within 30°."""
@@ -206,6 +213,14 @@ def trunk_up(world: np.ndarray) -> np.ndarray:
     return 0.5 * (world[..., 11, :] + world[..., 12, :] - world[..., 23, :] - world[..., 24, :])
 
 
+def shoulders_forward(world: np.ndarray) -> np.ndarray:
+    """Unit forward ``(..., 3)`` of BlazePose world landmarks ``(..., 33, 3)`` read across the shoulders
+    (left minus right) crossed with up the trunk: :func:`reading_forward` for frames whose hips are unseen."""
+    world = np.asarray(world, dtype=np.float64)
+    forward = np.cross(world[..., 11, :] - world[..., 12, :], trunk_up(world))
+    return forward / np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-12)
+
+
 def reading_forward(world: np.ndarray) -> np.ndarray:
     """Unit forward ``(..., 3)`` of BlazePose world landmarks ``(..., 33, 3)``: across the hips (left minus
     right) crossed with up the trunk (:func:`trunk_up`), as :func:`body_forward` for SMPL."""
@@ -215,7 +230,8 @@ def reading_forward(world: np.ndarray) -> np.ndarray:
 
 
 def facing_flips(world: np.ndarray, velocity: np.ndarray, linked: np.ndarray, judged: np.ndarray,
-                 config: FacingConfig = FacingConfig(), face: np.ndarray | None = None) -> np.ndarray:
+                 config: FacingConfig = FacingConfig(), face: np.ndarray | None = None,
+                 hips_seen: np.ndarray | None = None) -> np.ndarray:
     """``(P, T)`` bool: the frames whose reading the labelling mirrors (module docstring).
 
     Args:
@@ -225,6 +241,8 @@ def facing_flips(world: np.ndarray, velocity: np.ndarray, linked: np.ndarray, ju
         judged: ``(P, T)`` bool, the frames whose walk gives evidence (a subset of ``linked`` counts).
         face: ``(P, T)`` in [-1, 1], optional: +1 where the head shows a face, -1 its back, 0 unknown
             (:func:`.head_colour.face_evidence`).
+        hips_seen: ``(P, T)`` bool, optional: frames whose facing is read across the hips; the others'
+            across the shoulders (:func:`shoulders_forward`). All across the hips when None.
     """
     world, velocity = np.asarray(world, dtype=np.float64), np.asarray(velocity, dtype=np.float64)
     linked = np.asarray(linked, bool)
@@ -232,7 +250,11 @@ def facing_flips(world: np.ndarray, velocity: np.ndarray, linked: np.ndarray, ju
     if not config.enabled:
         return flips
     # (P, T, 2, 3): the forward of each frame's two readings, BlazePose's then the mirror.
-    forward = np.stack([reading_forward(world), reading_forward(mirror_world(world))], axis=-2)
+    mirror = mirror_world(world)
+    forward = np.stack([reading_forward(world), reading_forward(mirror)], axis=-2)
+    if hips_seen is not None:
+        across_shoulders = np.stack([shoulders_forward(world), shoulders_forward(mirror)], axis=-2)
+        forward = np.where(np.asarray(hips_seen, bool)[..., None, None], forward, across_shoulders)
     known = np.isfinite(velocity).all(-1) & linked & np.asarray(judged, bool)
     motion = np.where(known[..., None], velocity, 0.0)
     speed = np.linalg.norm(motion, axis=-1)
@@ -309,18 +331,34 @@ def walk_headings(world: np.ndarray, velocity: np.ndarray, judged: np.ndarray,
     return np.where((turn != 0)[..., None, None], turned, world), turn
 
 
-LEG_LANDMARKS: tuple[int, ...] = (23, 24, 25, 26, 27, 28)
-"""BlazePose's hips, knees and ankles."""
 HIP_LANDMARKS: tuple[int, ...] = (23, 24)
 """BlazePose's hips."""
+SHOULDER_LANDMARKS: tuple[int, ...] = (11, 12)
+"""BlazePose's shoulders."""
+LEG_LANDMARKS: tuple[tuple[int, ...], ...] = ((25, 27), (26, 28))
+"""BlazePose's left and right knee and ankle."""
 
 
-def legs_seen(image: np.ndarray, min_visibility: float, landmarks: tuple[int, ...] = LEG_LANDMARKS) -> np.ndarray:
-    """``(...)`` bool: every one of ``landmarks`` (default: the hips, knees and ankles) of BlazePose's
-    landmarks ``image (..., 33, 5)`` has visibility (column 3) at least ``min_visibility``."""
-    return np.asarray(image)[..., list(landmarks), 3].min(-1) >= min_visibility
+def landmarks_seen(image: np.ndarray, min_visibility: float, landmarks: tuple[int, ...],
+                   image_size: tuple[int, int] | None = None) -> np.ndarray:
+    """``(...)`` bool: every one of ``landmarks`` of BlazePose's landmarks ``image (..., 33, 5)`` has
+    visibility (column 3) at least ``min_visibility`` and, when ``image_size (H, W)`` is given, lies inside
+    the image (BlazePose gives landmarks beyond the frame's edge a visibility too)."""
+    image = np.asarray(image)[..., list(landmarks), :]
+    seen = image[..., 3].min(-1) >= min_visibility
+    if image_size is not None:
+        h, w = image_size
+        seen &= ((image[..., 0] >= 0) & (image[..., 0] < w) & (image[..., 1] >= 0) & (image[..., 1] < h)).all(-1)
+    return seen
 
 
-__all__ = ["LEG_LANDMARKS", "HIP_LANDMARKS", "LOWER_BODY", "legs_seen", "trunk_up", "reading_forward",
-           "BLAZEPOSE_MIRROR", "FacingConfig", "mirrored", "mirror_world", "twisted", "untwisted", "body_forward",
-           "root_velocity", "facing_flips", "walk_headings"]
+def body_seen(image: np.ndarray, min_visibility: float, image_size: tuple[int, int] | None = None) -> np.ndarray:
+    """``(...)`` bool: both hips and one leg's knee and ankle seen (:func:`landmarks_seen`), a body in view
+    to its feet: the frames whose walk the labelling and the headings read (``FacingConfig.min_leg_visibility``)."""
+    legs = [landmarks_seen(image, min_visibility, leg, image_size) for leg in LEG_LANDMARKS]
+    return landmarks_seen(image, min_visibility, HIP_LANDMARKS, image_size) & (legs[0] | legs[1])
+
+
+__all__ = ["HIP_LANDMARKS", "SHOULDER_LANDMARKS", "LEG_LANDMARKS", "LOWER_BODY", "landmarks_seen", "body_seen",
+           "trunk_up", "reading_forward", "shoulders_forward", "BLAZEPOSE_MIRROR", "FacingConfig", "mirrored",
+           "mirror_world", "twisted", "untwisted", "body_forward", "root_velocity", "facing_flips", "walk_headings"]

@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from multithumbs.perception.facing import (BLAZEPOSE_MIRROR, LOWER_BODY, FacingConfig, body_forward, facing_flips,
-                                           legs_seen, mirrored, reading_forward, root_velocity, twisted, untwisted,
+                                           body_seen, landmarks_seen, mirrored, reading_forward, root_velocity, twisted, untwisted,
                                            walk_headings)
 from multithumbs.perception.joints import BLAZEPOSE33_TO_SMPL24
 from multithumbs.perception.pose_tracking import ShotPoses
@@ -193,6 +193,22 @@ def test_frames_not_linked_keep_their_reading_and_unjudged_frames_give_no_eviden
     assert not facing_flips(world, slow, linked, np.ones((1, t), bool)).any()
 
 
+def test_frames_whose_hips_are_unseen_are_labelled_across_the_shoulders():
+    # Truth: walking away. The track's first two frames have their hips cut by the frame's foot: the
+    # reading's shoulders face the camera, and its hips (unseen) are a profile's. Read across the shoulders,
+    # the two frames take the rest's label through the turn cost; the hips' facing would say nothing.
+    t = 10
+    world = _world_facing(np.ones(t))[None]
+    world[0, :2] = _world_facing(-np.ones(2))
+    world[0, :2, [23, 24]] = [[0.0, 0.0, 0.1], [0.0, 0.0, -0.1]]     # hips along the depth: a profile
+    velocity = np.tile([0.0, 0.0, 0.03], (1, t, 1))
+    hips_seen, judged = np.ones((1, t), bool), np.ones((1, t), bool)
+    hips_seen[0, :2] = judged[0, :2] = False
+    flips = facing_flips(world, velocity, np.ones((1, t), bool), judged, hips_seen=hips_seen)
+    np.testing.assert_array_equal(flips[0], np.arange(t) < 2)
+    assert not facing_flips(world, velocity, hips_seen, judged).any()   # unlinked: the readings are kept
+
+
 def _reading(body, orient: np.ndarray, transl: np.ndarray) -> ShotPoses:
     """BlazePose-shaped landmarks of a zero-pose body: its 12 mapped joints projected, world about the hips."""
     t = len(transl)
@@ -208,10 +224,17 @@ def _reading(body, orient: np.ndarray, transl: np.ndarray) -> ShotPoses:
     return ShotPoses(np.array([0]), image, world, boxes, np.zeros((1, t, 360, 80), np.uint8), np.ones((1, t), bool))
 
 
-def test_legs_seen_needs_every_hip_knee_and_ankle():
-    image = np.ones((2, 33, 5))
-    image[1, 27, 3] = 0.4  # the left ankle hidden
-    np.testing.assert_array_equal(legs_seen(image, 0.5), [True, False])
+def test_a_body_is_seen_with_both_hips_and_one_legs_knee_and_ankle_inside_the_image():
+    image = np.ones((5, 33, 5))
+    image[..., :2] = 10.0
+    image[1, 27, 3] = 0.4                         # the left ankle hidden: the right leg is seen
+    image[2, [27, 28], 3] = 0.4                   # both ankles hidden
+    image[3, 23, 3] = 0.4                         # a hip hidden
+    image[4, 28, 1], image[4, 25, 3] = 500.0, 0.4  # the right ankle below the frame, the left knee hidden
+    np.testing.assert_array_equal(body_seen(image, 0.5), [True, True, False, False, True])
+    np.testing.assert_array_equal(body_seen(image, 0.5, (360, 640)), [True, True, False, False, False])
+    np.testing.assert_array_equal(landmarks_seen(image, 0.5, (11, 12)), [True] * 5)
+    np.testing.assert_array_equal(landmarks_seen(image, 0.5, (28,), (360, 640)), [True, True, False, True, False])
 
 
 def test_a_walk_without_legs_in_view_says_nothing(body):
