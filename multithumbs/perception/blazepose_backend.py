@@ -9,11 +9,11 @@ The ``blazepose`` perception source (the default of ``multithumbs run``). For ea
 3. :func:`multithumbs.perception.body_fit.fit_bodies` fits the body model to both in the scene's
    intrinsics, batched over the shot's people and frames;
 4. a reading whose hips and shoulders face opposite ways has its hips and legs mirrored onto the
-   shoulders' side; each track's readings are labelled front or back by where the fitted root walks, whether the head
-   shows a face or hair (:mod:`.head_colour`) and how slowly bodies turn; the frames taken for
-   BlazePose's front/back confusion are mirrored, every walker's reading is turned about its trunk
-   towards the walk, and the shot is fitted again (:mod:`.facing`); the walk is read with the camera's
-   own motion taken out, as the floor at each person's feet shows it (:mod:`.ground_motion`);
+   shoulders' side; each track's readings are labelled front or back by where the fitted root walks,
+   whether the head shows a face or hair (:mod:`.head_colour`) and how slowly bodies turn; the frames
+   taken for BlazePose's front/back confusion are mirrored, every walker's reading is turned about its
+   trunk towards the walk, and the shot is fitted again (:mod:`.facing`); the walk is read with the
+   camera's own motion taken out, as the floor at each person's feet shows it (:mod:`.ground_motion`);
 5. short tracks whose feet are off the floor the shot's other people stand on are dropped: BlazePose
    read a pattern (a rug, the torso of someone close to the camera) as a person (:mod:`.floor_check`).
 

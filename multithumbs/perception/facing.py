@@ -162,10 +162,7 @@ def _mirror_order(landmarks: tuple[int, ...] | None) -> tuple[list[int], np.ndar
 def twisted(world: np.ndarray, max_twist_deg: float) -> np.ndarray:
     """``(...)`` bool: readings ``world (..., 33, 3)`` whose hips and shoulders face more than
     ``max_twist_deg`` apart about the trunk (each half's forward: across it, crossed with the trunk's up)."""
-    world = np.asarray(world, dtype=np.float64)
-    up = trunk_up(world)
-    hips = np.cross(world[..., 23, :] - world[..., 24, :], up)
-    shoulders = np.cross(world[..., 11, :] - world[..., 12, :], up)
+    hips, shoulders = _forward_across(world, HIP_LANDMARKS), _forward_across(world, SHOULDER_LANDMARKS)
     norms = np.linalg.norm(hips, axis=-1) * np.linalg.norm(shoulders, axis=-1)
     return (hips * shoulders).sum(-1) < np.cos(np.radians(max_twist_deg)) * norms
 
@@ -213,19 +210,23 @@ def trunk_up(world: np.ndarray) -> np.ndarray:
     return 0.5 * (world[..., 11, :] + world[..., 12, :] - world[..., 23, :] - world[..., 24, :])
 
 
-def shoulders_forward(world: np.ndarray) -> np.ndarray:
-    """Unit forward ``(..., 3)`` of BlazePose world landmarks ``(..., 33, 3)`` read across the shoulders
-    (left minus right) crossed with up the trunk: :func:`reading_forward` for frames whose hips are unseen."""
+def _forward_across(world: np.ndarray, pair: tuple[int, int]) -> np.ndarray:
+    """``(..., 3)`` across a left / right ``pair`` of BlazePose world landmarks (left minus right) crossed
+    with up the trunk (:func:`trunk_up`): the way that pair faces, not normalised."""
     world = np.asarray(world, dtype=np.float64)
-    forward = np.cross(world[..., 11, :] - world[..., 12, :], trunk_up(world))
-    return forward / np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-12)
+    return np.cross(world[..., pair[0], :] - world[..., pair[1], :], trunk_up(world))
 
 
 def reading_forward(world: np.ndarray) -> np.ndarray:
     """Unit forward ``(..., 3)`` of BlazePose world landmarks ``(..., 33, 3)``: across the hips (left minus
     right) crossed with up the trunk (:func:`trunk_up`), as :func:`body_forward` for SMPL."""
-    world = np.asarray(world, dtype=np.float64)
-    forward = np.cross(world[..., 23, :] - world[..., 24, :], trunk_up(world))
+    forward = _forward_across(world, HIP_LANDMARKS)
+    return forward / np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-12)
+
+
+def shoulders_forward(world: np.ndarray) -> np.ndarray:
+    """:func:`reading_forward` read across the shoulders, for frames whose hips are unseen."""
+    forward = _forward_across(world, SHOULDER_LANDMARKS)
     return forward / np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-12)
 
 

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 import torch
 
-from multithumbs.perception.facing import (BLAZEPOSE_MIRROR, LOWER_BODY, FacingConfig, body_forward, facing_flips,
-                                           body_seen, landmarks_seen, mirrored, reading_forward, root_velocity, twisted, untwisted,
-                                           walk_headings)
+from multithumbs.perception.facing import (BLAZEPOSE_MIRROR, LOWER_BODY, FacingConfig, body_forward, body_seen,
+                                           facing_flips, landmarks_seen, mirrored, reading_forward, root_velocity,
+                                           twisted, untwisted, walk_headings)
 from multithumbs.perception.joints import BLAZEPOSE33_TO_SMPL24
 from multithumbs.perception.pose_tracking import ShotPoses
 
