@@ -114,9 +114,10 @@ def read_walk(poses: ShotPoses, fitted: FittedBodies, config: FacingConfig, K: n
 
 
 def mirror_flips(poses: ShotPoses, walk: np.ndarray, judged: np.ndarray, config: FacingConfig,
-                 face: np.ndarray | None = None) -> np.ndarray:
-    """``(P, T)`` bool: frames whose reading the walk (:func:`read_walk`), the head's colours ``face``
-    (:func:`shot_face_evidence`) and the turns take for a back seen as a front (step 4)."""
+                 face: np.ndarray | None = None, view: np.ndarray | None = None) -> np.ndarray:
+    """``(P, T)`` bool: frames whose reading the walk (:func:`read_walk`, seen along ``view``,
+    :func:`view_directions`), the head's colours ``face`` (:func:`shot_face_evidence`) and the turns take
+    for a back seen as a front (step 4)."""
     if not config.enabled or not poses.valid.any():
         return np.zeros(poses.valid.shape, bool)
     hips = landmarks_seen(poses.image, config.min_hip_visibility, HIP_LANDMARKS)
@@ -124,7 +125,13 @@ def mirror_flips(poses: ShotPoses, walk: np.ndarray, judged: np.ndarray, config:
         linked = poses.valid & (hips | landmarks_seen(poses.image, config.min_hip_visibility, SHOULDER_LANDMARKS))
     else:
         linked = poses.valid & hips
-    return facing_flips(poses.world, walk, linked, judged, config, face, hips)
+    return facing_flips(poses.world, walk, linked, judged, config, face, hips, view)
+
+
+def view_directions(transl: np.ndarray) -> np.ndarray:
+    """``(P, T, 3)`` unit vectors from the camera to the fitted roots ``transl (P, T, 3)`` (camera frame)."""
+    transl = np.asarray(transl, dtype=np.float64)
+    return transl / np.maximum(np.linalg.norm(transl, axis=-1, keepdims=True), 1e-12)
 
 
 def shot_floor_flow(frames, poses: ShotPoses, config: BlazePoseConfig) -> np.ndarray | None:
@@ -165,9 +172,10 @@ def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.n
     walk, judged = read_walk(poses, fitted, facing, K, floor_flow, image_size)
     # The head's colours, like the walk, count on whole bodies only: on Megamind.avi's close-ups the crown,
     # placed by the neck's length, fell on foreheads and the cue relabelled 29 of 422 person-frames.
-    flips = mirror_flips(poses, walk, judged, facing, None if face is None else np.where(judged, face, 0.0))
+    view = view_directions(fitted.transl)
+    flips = mirror_flips(poses, walk, judged, facing, None if face is None else np.where(judged, face, 0.0), view)
     image, world = mirrored(poses.image, poses.world, flips)
-    world, turns = walk_headings(world, walk, judged & poses.valid, facing)
+    world, turns = walk_headings(world, walk, judged & poses.valid, facing, view)
     if flips.any() or turns.any():
         keypoints, fitted = _fit(image, world, poses.valid, K, body, config)
     return drop_off_floor(PersonTracks(

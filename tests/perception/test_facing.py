@@ -6,8 +6,8 @@ import pytest
 import torch
 
 from multithumbs.perception.facing import (BLAZEPOSE_MIRROR, LOWER_BODY, FacingConfig, body_forward, body_seen,
-                                           facing_flips, landmarks_seen, mirrored, reading_forward, root_velocity,
-                                           twisted, untwisted, walk_headings)
+                                           evidence_speed, facing_flips, landmarks_seen, mirrored, reading_forward,
+                                           root_velocity, twisted, untwisted, walk_headings)
 from multithumbs.perception.joints import BLAZEPOSE33_TO_SMPL24
 from multithumbs.perception.pose_tracking import ShotPoses
 
@@ -191,6 +191,40 @@ def test_frames_not_linked_keep_their_reading_and_unjudged_frames_give_no_eviden
     slow = np.tile([0.0, 0.0, 0.004], (1, t, 1))
     assert not facing_flips(world, across, linked, np.ones((1, t), bool)).any()
     assert not facing_flips(world, slow, linked, np.ones((1, t), bool)).any()
+
+
+def test_evidence_speed_scales_the_component_along_the_view_only():
+    rng = np.random.default_rng(3)
+    velocity = rng.normal(size=(4, 6, 3))
+    view = rng.normal(size=(4, 6, 3))
+    view /= np.linalg.norm(view, axis=-1, keepdims=True)
+    along = (velocity * view).sum(-1)
+    across = np.linalg.norm(velocity - along[..., None] * view, axis=-1)
+    np.testing.assert_allclose(evidence_speed(velocity, None, 0.5), np.linalg.norm(velocity, axis=-1))
+    np.testing.assert_allclose(evidence_speed(velocity, view, 1.0), np.linalg.norm(velocity, axis=-1))
+    np.testing.assert_allclose(evidence_speed(velocity, view, 0.0), across, atol=1e-12)
+    np.testing.assert_allclose(evidence_speed(velocity, view, 0.25), np.hypot(across, 0.25 * along), atol=1e-12)
+
+
+def test_a_standing_persons_depth_drift_is_weak_evidence_and_a_walk_away_still_decides():
+    # Read as facing the camera throughout. A fit's depth drifting 8 mm a frame along the view (a person
+    # standing, their size misread) mirrored every frame; counted at half, it is under min_speed and the
+    # reading stays. A walk away at 30 mm a frame still counts and mirrors them.
+    t = 10
+    world = _world_facing(-np.ones(t))[None]
+    everywhere = np.ones((1, t), bool)
+    view = np.tile([0.0, 0.0, 1.0], (1, t, 1))
+    drift = np.tile([0.0, 0.0, 0.008], (1, t, 1))
+    np.testing.assert_array_equal(facing_flips(world, drift, everywhere, everywhere), everywhere)
+    assert not facing_flips(world, drift, everywhere, everywhere, view=view).any()
+    walk = np.tile([0.0, 0.0, 0.03], (1, t, 1))
+    np.testing.assert_array_equal(facing_flips(world, walk, everywhere, everywhere, view=view), everywhere)
+    # The headings alike; across the view the same 8 mm a frame counts in full.
+    side = _yawed(_world_facing(np.ones(t)), 60.0)[None]
+    sideways = np.tile([0.008, 0.0, 0.0], (1, t, 1))
+    assert walk_headings(side, drift, everywhere)[1].all()                     # without the view: turned
+    assert not walk_headings(side, drift, everywhere, FacingConfig(), view)[1].any()
+    assert walk_headings(side, sideways, everywhere, FacingConfig(), view)[1].all()
 
 
 def test_frames_whose_hips_are_unseen_are_labelled_across_the_shoulders():
