@@ -20,7 +20,8 @@ the hips negated), and each reading faces a way (:func:`reading_forward`). The l
 is the cheapest path through them (Viterbi, :func:`facing_flips`):
 - people walk forwards: where the whole body is seen and the fit's root moves (camera frame, a
   least-squares line over a few frames), a reading facing against the motion costs, one facing along it
-  gains;
+  gains; the motion along the line of sight counts at half (:func:`evidence_speed`), since the fit's
+  depth, read from the body's size, wanders while a person stands;
 - bodies turn slowly: a reading turned 180° from the previous frame's costs ``turn_cost``, so the
   walk's evidence carries to frames where it says nothing (a track's first frames, a person standing
   or walking across the view), and BlazePose's frame-by-frame flips are undone as a run;
