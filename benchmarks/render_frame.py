@@ -25,7 +25,8 @@ import trimesh
 
 from multithumbs.geometry import intrinsics_from_fov, look_at
 from multithumbs.synth.render import MeshInstance, render_view
-from multithumbs.synth.room import make_room, texture_atlas
+from multithumbs.synth.room import make_room
+from multithumbs.synth.textures import texture_atlas
 
 IMAGE_SIZE = (360, 640)
 

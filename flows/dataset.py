@@ -144,7 +144,7 @@ def benchmark_items(specs: list[str], data_root: str, clips_dir: str, perception
     """Build (or reuse) a real-data benchmark's clips and describe them as dataset items.
 
     Args:
-        specs: clip spec files (:mod:`multithumbs.datasets.benchmark`).
+        specs: clip spec files (:mod:`multithumbs.datasets.clip_specs`).
         data_root: the dataset's root. clips_dir: where clips are built.
         perception: ``oracle`` (exact tracks from each clip's ground truth: measures everything after
             perception, labelled so) or a folder holding 4DHumans/PHALP results ``NAME.pkl`` per clip.

@@ -50,7 +50,7 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
         variant, method: method variant and parameter overrides (:func:`tasks.method.method_config`).
         truth: optional ground-truth ``.npz`` to score against.
         shots, tracking, two_view: overrides of :class:`~multithumbs.scene.shots.ShotConfig`,
-            :class:`~multithumbs.scene.tracking.TrackingConfig`, :class:`~multithumbs.scene.two_view.TwoViewConfig`.
+            :class:`~multithumbs.scene.tracking.TrackingConfig`, :class:`~multithumbs.scene.two_view_pose.TwoViewConfig`.
         cuts: the cut frames when they are known (a benchmark clip built from a spec); shot detection is
             then skipped and the shots' source is ``given``.
         smpl_model: the SMPL file (.npz or .pkl) every stage poses people with; default
@@ -62,7 +62,7 @@ def reconstruct_video(video: str, out_dir: str, store_url: str, perception: str,
     from multithumbs.scene.focal import FocalConfig, given_focal
     from multithumbs.scene.shots import ShotConfig
     from multithumbs.scene.tracking import TrackingConfig
-    from multithumbs.scene.two_view import TwoViewConfig
+    from multithumbs.scene.two_view_pose import TwoViewConfig
     from multithumbs.video import probe_video
     from storage.keys import file_digest
     from tasks.artifacts import load

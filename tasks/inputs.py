@@ -226,7 +226,7 @@ def shared_space(store_url: str, inputs: dict[str, ArtifactRef], params: dict, v
     :class:`TwoViewConfig`, ``neighbour_frames``)."""
     def compute():
         from multithumbs.scene.geometry import cut_frames_needed, cut_shared_space
-        from multithumbs.scene.two_view import TwoViewConfig
+        from multithumbs.scene.two_view_pose import TwoViewConfig
         from multithumbs.video import read_frames
 
         shots, c = load(inputs["shots"]), params["cut"]

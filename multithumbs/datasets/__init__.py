@@ -5,7 +5,8 @@ and edited real videos for the GT-free metrics. Formats: ``docs/FORMATS.md``.
 - :mod:`~multithumbs.datasets.sequence`: :class:`MultiViewSequence`, :class:`PeopleSeries`.
 - :mod:`~multithumbs.datasets.egohumans`: EgoHumans and Harmony4D (COLMAP + Aria or ``scale.npy``).
 - :mod:`~multithumbs.datasets.egobody`: EgoBody (Kinect views, gendered SMPL fits).
-- :mod:`~multithumbs.datasets.benchmark`: clip specs, the clip builder, :func:`iter_benchmark`.
+- :mod:`~multithumbs.datasets.clip_specs`: clip specs (:class:`ClipSpec`, spec files).
+- :mod:`~multithumbs.datasets.benchmark`: the clip builder, :func:`iter_benchmark`.
 - :mod:`~multithumbs.datasets.edited`: AVA (Multishot) and sitcom clips with cross-shot identities.
 - :mod:`~multithumbs.datasets.catalog`: what a data root holds; opening a sequence.
 - :mod:`~multithumbs.datasets.smpl_files`: converting an official SMPL pickle, verified.
@@ -14,8 +15,8 @@ and edited real videos for the GT-free metrics. Formats: ``docs/FORMATS.md``.
 import importlib
 
 # Names resolve lazily (PEP 562): the CLI imports this package's commands without paying for torch.
-_EXPORTS = {"ClipSpec": "benchmark", "build_clip": "benchmark", "iter_benchmark": "benchmark", "load_spec": "benchmark",
-            "load_specs": "benchmark", "Camera": "cameras", "metric_extrinsics": "cameras",
+_EXPORTS = {"ClipSpec": "clip_specs", "build_clip": "benchmark", "iter_benchmark": "benchmark",
+            "load_spec": "clip_specs", "load_specs": "clip_specs", "Camera": "cameras", "metric_extrinsics": "cameras",
             "describe_root": "catalog", "detect_dataset": "catalog", "open_sequence": "catalog",
             "MultiViewSequence": "sequence", "PeopleSeries": "sequence"}
 __all__ = sorted(_EXPORTS)

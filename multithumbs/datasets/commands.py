@@ -71,7 +71,8 @@ def register(app: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print {name: clip folder} as JSON."),
     ) -> None:
         """Build benchmark clips (video.mp4, ground_truth.npz, spec.json) from spec files."""
-        from multithumbs.datasets.benchmark import iter_benchmark, load_specs
+        from multithumbs.datasets.benchmark import iter_benchmark
+        from multithumbs.datasets.clip_specs import load_specs
 
         loaded = load_specs(specs)
         built = {}

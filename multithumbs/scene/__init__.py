@@ -6,7 +6,7 @@ import importlib
 # Names resolve lazily (PEP 562): the CLI imports this package's commands without loading pycolmap.
 _EXPORTS = {"SceneGeometry": "geometry", "scene_geometry": "geometry", "BoundaryPair": "shots", "ShotConfig": "shots",
             "boundary_frames": "shots", "detect_shots": "shots", "TrackingConfig": "tracking",
-            "track_camera": "tracking", "TwoViewConfig": "two_view", "default_intrinsics": "two_view",
+            "track_camera": "tracking", "TwoViewConfig": "two_view_pose", "default_intrinsics": "two_view",
             "shared_space_at_cut": "two_view"}
 __all__ = sorted(_EXPORTS)
 

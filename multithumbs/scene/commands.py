@@ -126,7 +126,8 @@ def register(app: typer.Typer) -> None:
         from rich.console import Console
 
         from multithumbs.geometry import intrinsics as make_intrinsics
-        from multithumbs.scene.two_view import TwoViewConfig, default_intrinsics, estimate_two_view
+        from multithumbs.scene.two_view import default_intrinsics, estimate_two_view
+        from multithumbs.scene.two_view_pose import TwoViewConfig
 
         a, b = _read_image(image_a), _read_image(image_b)
         if a.shape != b.shape:

@@ -17,7 +17,8 @@ import numpy as np
 from multithumbs.errors import InputError
 from multithumbs.scene.shots import boundary_frames
 from multithumbs.scene.tracking import TrackingConfig, track_camera
-from multithumbs.scene.two_view import TwoViewConfig, shared_space_at_cut
+from multithumbs.scene.two_view import shared_space_at_cut
+from multithumbs.scene.two_view_pose import TwoViewConfig
 from multithumbs.types import CameraTrajectory, SharedSpace, Shots
 
 

@@ -30,7 +30,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from multithumbs.errors import InputError
-from multithumbs.scene.two_view import dilate, relative_pose, triangulate
+from multithumbs.scene.two_view import dilate
+from multithumbs.scene.two_view_pose import relative_pose, triangulate
 from multithumbs.types import CameraTrajectory
 
 
@@ -179,7 +180,7 @@ def is_static(grays: list[np.ndarray], rooms: list[np.ndarray | None], config: T
 
 
 def _colmap_camera(K: np.ndarray, image_size: tuple[int, int]):
-    from multithumbs.scene.two_view import _colmap_camera as make
+    from multithumbs.scene.two_view_pose import _colmap_camera as make
 
     return make(K, image_size)
 

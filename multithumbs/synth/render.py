@@ -18,7 +18,8 @@ import numpy as np
 
 from multithumbs.errors import InputError
 from multithumbs.geometry import vertex_normals
-from multithumbs.synth.room import NUM_ROOM_SURFACES, TEXEL_SIZE, Box, Room, room_surfaces, texture_atlas
+from multithumbs.synth.room import NUM_ROOM_SURFACES, TEXEL_SIZE, Box, Room, room_surfaces
+from multithumbs.synth.textures import texture_atlas
 from multithumbs.types import check_array
 
 NEAR_PLANE = 0.05

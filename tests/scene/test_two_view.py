@@ -3,12 +3,11 @@ import pytest
 
 from multithumbs.errors import InputError
 from multithumbs.scene.two_view import (
-    TwoViewConfig,
     default_intrinsics,
     estimate_two_view,
-    interpolate_room,
     shared_space_at_cut,
 )
+from multithumbs.scene.two_view_pose import TwoViewConfig
 from multithumbs.types import SharedSpace
 from tests.scene.conftest import direction_error_deg, relative, rotation_error_deg
 
@@ -102,12 +101,3 @@ def test_default_intrinsics():
     assert (K[0, 2], K[1, 2]) == (319.5, 179.5) and K[0, 0] == K[1, 1]
     with pytest.raises(InputError):
         default_intrinsics(0, 10)
-
-
-def test_room_interpolation_is_exact_on_a_plane():
-    rng = np.random.default_rng(1)
-    xy = rng.uniform([0, 0], [99, 59], (60, 2))
-    inverse = 0.2 + 0.001 * xy[:, 0] + 0.002 * xy[:, 1]  # a plane: inverse depth affine in the image
-    pix, depth = interpolate_room(xy, 1 / inverse, np.zeros((60, 100), bool), (60, 100), 2, 1e9)
-    assert len(pix) > 500
-    np.testing.assert_allclose(1 / depth, 0.2 + 0.001 * pix[:, 0] + 0.002 * pix[:, 1], rtol=1e-9)
