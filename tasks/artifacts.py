@@ -25,7 +25,7 @@ from storage.codecs import decode, encode
 from storage.keys import artifact_key
 from storage.store import ArtifactRef, ArtifactStore, CorruptArtifact
 
-STAGE_VERSIONS = {"simulate_inputs": 3, "ground_truth": 1, "shots": 2, "perception": 31, "trajectory": 2, "space": 2,
+STAGE_VERSIONS = {"simulate_inputs": 3, "ground_truth": 1, "shots": 2, "perception": 32, "trajectory": 2, "space": 2,
                   "focal": 3, "align": 6, "propagate": 4, "reid": 4, "post": 3, "evaluate": 1}
 """Bump a stage's version when its code changes its output: its key and every key after it change.
 (Torch stages bumped together when every stage came to compute with one thread, :func:`compute_fixed`.)

@@ -26,6 +26,13 @@ Only short tracks are judged (``max_readings``): a person followed for a long ti
 check must not take someone standing on a stair or a stage for a pattern. Every track of no one on the
 suite was read in at most 16 frames, and long real tracks judged against one or two others reached 0.54,
 where so few people fit the floor loosely.
+
+Nor are tracks whose mask reaches the frame's edge in any reading (``judge_cut``): a person walking in or
+out through the edge, or close to the camera and cut by it. Their tracks are short because the frame cuts
+them, and BlazePose squeezes the body it reads into the frame, so the feet land inside the image, above
+where the person stands. On the suite at stage 31 the check dropped four tracks: two readings of no one,
+never at the frame's edge, and two people entering (s01, s02), whose masks were at the edge in 86 % and
+38 % of their readings and whose feet were read 0.30 and 0.32 of their heights off the floor.
 """
 
 from __future__ import annotations
@@ -66,6 +73,9 @@ class FloorCheckConfig:
     """Spread of the other readings' foot columns, in image widths, the floor needs (for its roll)."""
     min_confidence: float = 0.5
     """Keypoint confidence from which a foot, and a joint of the height, counts as seen."""
+    judge_cut: bool = False
+    """Judge tracks whose mask reaches the frame's edge in some reading too (module docstring: the frame
+    cuts them, and their feet are read inside it)."""
 
 
 def foot_readings(tracks: PersonTracks, min_confidence: float
@@ -103,6 +113,14 @@ def fit_floor(rows: np.ndarray, depths: np.ndarray, columns: np.ndarray, scale: 
     return result.x
 
 
+def cut_by_edge(masks: np.ndarray, valid: np.ndarray, width: int) -> np.ndarray:
+    """``(P,)`` bool: whether a person's mask reaches the frame's edge (its first or last row or column) in
+    any of their valid frames; ``masks (P, T, H, ceil(W / 8))`` packed along the rows, ``valid (P, T)``."""
+    rows = masks[..., [0, -1], :].any((-1, -2))
+    columns = np.unpackbits(masks[..., [0, (width - 1) // 8]], axis=-1)[..., [0, 8 + (width - 1) % 8]].any((-1, -2))
+    return ((rows | columns) & valid).any(-1)
+
+
 def _spans_a_floor(others: np.ndarray, depths: np.ndarray, columns: np.ndarray, width: int,
                    config: FloorCheckConfig) -> bool:
     """Whether the readings ``others (P, T)`` are enough, and spread enough, to fit a floor to."""
@@ -121,15 +139,17 @@ def floor_offsets(tracks: PersonTracks, config: FloorCheckConfig = FloorCheckCon
     Returns:
         ``offsets (P,)`` (signed: positive below the floor) and ``scatters (P,)`` (1.4826 times the other
         readings' median absolute deviation from their median offset); NaN for a track not judged (long,
-        no feet seen, the others' readings too few or too close together to fit a floor to).
+        no feet seen, cut by the frame's edge, the others' readings too few or too close together to fit a
+        floor to).
     """
     rows, columns, heights, seen = foot_readings(tracks, config.min_confidence)
     depths = tracks.transl[..., 2]
     seen &= depths > 0
     depths, heights = np.where(seen, depths, 1.0), np.where(seen, heights, 1.0)  # no division by 0 where unseen
     offsets, scatters = np.full(tracks.num_people, np.nan), np.full(tracks.num_people, np.nan)
+    cut = cut_by_edge(tracks.masks, tracks.valid, tracks.image_size[1]) & (not config.judge_cut)
     for p in range(tracks.num_people):
-        if not seen[p].any() or tracks.valid[p].sum() > config.max_readings:
+        if not seen[p].any() or tracks.valid[p].sum() > config.max_readings or cut[p]:
             continue
         others = seen.copy()
         others[p] = False
@@ -160,5 +180,5 @@ def drop_off_floor(tracks: PersonTracks, config: FloorCheckConfig = FloorCheckCo
     return keep_people(tracks, ~off)
 
 
-__all__ = ["FloorCheckConfig", "FOOT_JOINTS", "foot_readings", "fit_floor", "floor_offsets", "keep_people",
-           "drop_off_floor"]
+__all__ = ["FloorCheckConfig", "FOOT_JOINTS", "cut_by_edge", "foot_readings", "fit_floor", "floor_offsets",
+           "keep_people", "drop_off_floor"]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from multithumbs.perception.floor_check import (FOOT_JOINTS, FloorCheckConfig, drop_off_floor, fit_floor,
+from multithumbs.perception.floor_check import (FOOT_JOINTS, FloorCheckConfig, cut_by_edge, drop_off_floor, fit_floor,
                                                 floor_offsets, keep_people)
 from multithumbs.types import PersonTracks
 
@@ -150,3 +150,43 @@ def test_a_floor_the_others_fit_loosely_drops_no_one():
     offsets, scatters = floor_offsets(loose)
     assert abs(offsets[3]) > 0.25 and abs(offsets[3]) < 5 * scatters[3]
     assert drop_off_floor(loose).num_people == 4
+
+
+@pytest.mark.parametrize("width", [640, 636])
+def test_cut_by_edge_is_a_mask_pixel_on_the_frames_border_in_a_valid_frame(width):
+    h, p, t = 40, 6, 3
+    full = np.zeros((p, t, h, width), bool)
+    full[:, :, 10:20, 10:20] = True  # every person has an inner blob
+    full[1, 0, 0, 30] = True  # top row
+    full[2, 1, h - 1, 5] = True  # bottom row
+    full[3, 2, 25, 0] = True  # first column
+    full[4, 0, 12, width - 1] = True  # last column
+    full[5, 1, 0, 0] = True  # on the border, but in a frame where the person is not valid
+    valid = np.ones((p, t), bool)
+    valid[5, 1] = False
+    packed = np.packbits(full, axis=-1)
+    border = full[..., [0, -1], :].any((-1, -2)) | full[..., :, [0, -1]].any((-1, -2))  # unpacked, directly
+    expected = (border & valid).any(-1)
+    np.testing.assert_array_equal(cut_by_edge(packed, valid, width), expected)
+    assert expected.tolist() == [False, True, True, True, True, False]
+
+
+def test_a_short_track_cut_by_the_frames_edge_is_not_judged():
+    # s02's person entering through the frame's left edge, close to the camera: BlazePose read the body
+    # squeezed into the frame, feet 0.32 of its height above the floor, and the check dropped a real person.
+    keypoints, transl, _ = _walkers()
+    heights = np.stack([kp[..., 1].max(-1) - kp[..., 1].min(-1) for kp in keypoints])
+    raised = keypoints[1].copy()
+    raised[:, list(FOOT_JOINTS), 1] -= (0.45 * heights[1])[:, None]
+    short = np.zeros(30, bool)
+    short[10:16] = True
+    tracks = _tracks(keypoints + [raised], transl + [transl[1]], [np.ones(30, bool)] * 3 + [short])
+    masks = np.zeros((4, 30, 360, 640), bool)
+    masks[:, :, 100:200, 300:340] = True
+    masks[3, 12, 150:200, 0:20] = True  # in one of its frames, the mask reaches the left edge
+    tracks = dataclasses.replace(tracks, masks=np.packbits(masks, axis=-1))
+    assert np.isnan(floor_offsets(tracks)[0][3])
+    assert drop_off_floor(tracks).num_people == 4
+    judged = dataclasses.replace(FloorCheckConfig(), judge_cut=True)
+    assert floor_offsets(tracks, judged)[0][3] < -0.25  # above the floor (negative)
+    assert drop_off_floor(tracks, judged).num_people == 3
