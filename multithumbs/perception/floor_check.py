@@ -115,7 +115,8 @@ def fit_floor(rows: np.ndarray, depths: np.ndarray, columns: np.ndarray, scale: 
 
 def cut_by_edge(masks: np.ndarray, valid: np.ndarray, width: int) -> np.ndarray:
     """``(P,)`` bool: whether a person's mask reaches the frame's edge (its first or last row or column) in
-    any of their valid frames; ``masks (P, T, H, ceil(W / 8))`` packed along the rows, ``valid (P, T)``."""
+    any of their valid frames; ``masks (P, T, H, ceil(W / 8))`` with each row's pixels packed into bytes
+    (``np.packbits(..., axis=-1)``, as :class:`~multithumbs.types.PersonTracks` stores them), ``valid (P, T)``."""
     rows = masks[..., [0, -1], :].any((-1, -2))
     columns = np.unpackbits(masks[..., [0, (width - 1) // 8]], axis=-1)[..., [0, 8 + (width - 1) % 8]].any((-1, -2))
     return ((rows | columns) & valid).any(-1)
