@@ -10,8 +10,9 @@ motion. It stops at the track's previous run, after ``backfill`` frames, or at t
 not a plausible pose, that fits the track's appearance model poorly (above ``split_dissimilarity``: the
 forward pass does not learn from such readings either), or that lands on or near a person already
 followed in that frame (box overlap ≥ ``revive_iou``, or :func:`.pose_checks.same_box`, or mostly their
-pixels). A filled frame's mask is its segmentation in its square, less the pixels
-the frame's other people already own (their masks were settled with the frame).
+pixels), unless the square, read again with those people greyed out, gives the track's own person
+(someone partly behind another, :mod:`.behind`). A filled frame's mask is its segmentation in its square,
+less the pixels the frame's other people already own (their masks were settled with the frame).
 
 Before that, :func:`reread_starts` reads the first ``reread`` frames of every run again, backwards, each in
 the square of the frame after it. A run's first square comes from a detection (a face-anchored box, or a
@@ -30,6 +31,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from multithumbs.perception import blazepose as bp
+from multithumbs.perception.behind import pixels, read_behind
 from multithumbs.perception.pose_checks import (box_iou, describe, dissimilarity, moved_square, plausible, same_box,
                                                 same_pixels)
 from multithumbs.perception.shot_assembly import NO_SEGMENTATION, landmark_box
@@ -57,25 +59,42 @@ def _fill_before(track: _Track, start: int, tracks: list[_Track], frames: Sequen
     calls = 0
     t = start - 1
     while t >= 0 and t not in track.frames and start - t <= config.backfill:
-        found = model.landmarks(frames[t], backward_roi(track, t))
+        square = backward_roi(track, t)
+        found = model.landmarks(frames[t], square)
         calls += 1
         others = [tr for tr in tracks if tr is not track and t in tr.frames]
-        # near someone followed: a second reading of them, or a crossing boxes cannot settle
-        if not plausible(found, config) or _near_someone(landmark_box(found), others, t, config):
-            break
-        if dissimilarity(track, describe(frames[t], found, config), config) > config.split_dissimilarity:
-            break  # only readings like the track's person (forwards, those above it are not learnt from)
-        shape = found.segmentation.shape
-        mine = (found.segmentation >= config.mask_probability) & found.roi.mask(shape)
-        owned = [np.unpackbits(tr.masks[t], axis=1, count=shape[1]).astype(bool) for tr in others]
-        if any(same_pixels(mine, theirs, config) for theirs in owned):
-            break
+        owned = [np.unpackbits(tr.masks[t], axis=1, count=frames[t].shape[1]).astype(bool) for tr in others]
+        if not _own_reading(found, track, frames[t], others, owned, t, config):
+            if not config.read_behind:
+                break
+            # perhaps behind one of them: read again with them greyed out (.behind)
+            got, used = read_behind(frames[t], square, track, [(landmark_box(tr.frames[t]), mask)
+                                                               for tr, mask in zip(others, owned)], model, config)
+            calls += used
+            if got is None:
+                break
+            found = got[0]
+        mine = pixels(found, config.mask_probability)
         for theirs in owned:
             mine &= ~theirs
         track.frames[t] = dataclasses.replace(found, segmentation=NO_SEGMENTATION)
         track.masks[t] = np.packbits(mine, axis=1)
         t -= 1
     return calls
+
+
+def _own_reading(found: bp.Landmarks, track: _Track, frame: np.ndarray, others: list[_Track], owned: list[np.ndarray],
+                 t: int, config: TrackerConfig) -> bool:
+    """A backward reading is the track's own person: a plausible pose, not on or near someone followed in
+    frame ``t`` (a second reading of them, or a crossing boxes cannot settle), like the track's model
+    (forwards, readings above ``split_dissimilarity`` are not learnt from), and not mostly the pixels
+    another person owns."""
+    if not plausible(found, config) or _near_someone(landmark_box(found), others, t, config):
+        return False
+    if dissimilarity(track, describe(frame, found, config), config) > config.split_dissimilarity:
+        return False
+    mine = pixels(found, config.mask_probability)
+    return not any(same_pixels(mine, theirs, config) for theirs in owned)
 
 
 def reread_starts(tracks: list[_Track], frames: Sequence[np.ndarray], model, config: TrackerConfig) -> int:

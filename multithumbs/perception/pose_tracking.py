@@ -6,7 +6,9 @@ carries its own square, and the detector runs on the whole frame every ``redetec
 whenever someone was lost), so people who enter, or who come back after an occlusion, are found:
 
 1. each live track's landmarks are computed in the square its last landmarks give, moved on by their
-   last motion; a pose flag below ``min_presence`` marks it missed;
+   last motion; a pose flag below ``min_presence``, or a reading unlike the track's appearance model
+   (below), marks it missed, unless the square, read again with the others read in it greyed out, gives
+   the track's own person (someone partly behind another, :mod:`.behind`);
 2. on detection frames, everyone followed is greyed out (their segmentation) and the detector runs
    round after round, each time on its best detection: a landmark pass in its square on the real frame
    confirms it, it is greyed out in turn, and it becomes a recently lost track (same box, overlap ≥
@@ -17,7 +19,8 @@ whenever someone was lost), so people who enter, or who come back after an occlu
    by their body, whom the face-anchored one misses. A box whose centre lies in a followed person's box,
    but which is not theirs, is someone partly behind them: it is read with everyone followed greyed out;
 3. two tracks whose landmark boxes overlap by ``duplicate_iou`` or more, or one nearly inside the other,
-   have drifted onto one person: the younger one is marked missed, last seen where it was before. A
+   have drifted onto one person: the younger one is marked missed, last seen where it was before (unless
+   its square, read again with the others greyed out, gives its own person, as in step 1). A
    pose whose landmarks shrink into a corner of their square (bodies cut by the frame's edge) is not
    taken;
 4. masks: each person's segmentation on the frame, restricted to the square it came from; a pixel
@@ -53,6 +56,7 @@ import numpy as np
 
 from multithumbs.perception import blazepose as bp
 from multithumbs.perception.backfill import backfill, reread_starts
+from multithumbs.perception.behind import grey_out, pixels, read_behind
 from multithumbs.perception.person_proposals import hog_boxes, proposal_roi
 from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity, moved_square, plausible, same_person
 from multithumbs.perception.shot_assembly import ShotPoses, assemble, drop_short_runs, landmark_box, settle_frame
@@ -100,11 +104,6 @@ def _predicted_roi(track: _Track, t: int) -> bp.Roi:
     return moved_square(track.last, track.frames.get(t - 2) if t - 1 in track.frames else None)
 
 
-def _paint_out(canvas: np.ndarray, found: bp.Landmarks, config: TrackerConfig) -> None:
-    """Grey out a person the detector has already given, so that its next pass finds someone else."""
-    canvas[(found.segmentation >= config.paint_probability) & found.roi.mask(canvas.shape[:2])] = 127
-
-
 def _best_detection(canvas: np.ndarray, model, config: TrackerConfig) -> tuple[bp.Detection | None, int]:
     """The detector's best detection on the whole frame, else on square tiles across its long side (a
     tile is seen at up to ``long side / short side`` times the resolution: smaller people are found).
@@ -134,7 +133,7 @@ def _find_people(frame: np.ndarray, model, config: TrackerConfig, tracks: list[_
     calls made."""
     canvas = frame.copy()
     for tr in live:
-        _paint_out(canvas, tr.last, config)
+        grey_out(canvas, tr.last, config)
     calls = [0, 0]
     for _ in range(config.max_people - len(live) + config.max_rejections):
         if len(live) >= config.max_people:
@@ -148,7 +147,7 @@ def _find_people(frame: np.ndarray, model, config: TrackerConfig, tracks: list[_
         if _claimed(detection, live) or not _take(found, frame, config, tracks, live, lost, t, new_track):
             x0, y0, x1, y1 = np.round(detection.face_box).astype(int)
             canvas[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = 127
-        _paint_out(canvas, found, config)
+        grey_out(canvas, found, config)
     if config.proposals and len(live) < config.max_people:
         boxes = (people(frame) if people is not None
                  else hog_boxes(frame, config.proposal_scales, config.proposal_min_weight))
@@ -168,7 +167,7 @@ def _find_people(frame: np.ndarray, model, config: TrackerConfig, tracks: list[_
             calls[1] += 1
             found = model.landmarks(image, roi)
             if _take(found, frame, config, tracks, live, lost, t, new_track):
-                _paint_out(canvas, found, config)
+                grey_out(canvas, found, config)
     return calls[0], calls[1]
 
 
@@ -218,14 +217,17 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
                 tr.missed += 1  # ages every lost track; past max_missed only its appearance can revive it
         live = [tr for tr in tracks if tr.missed == 0]
         horizon = max(config.max_missed, config.relink_missed) if config.appearance else config.max_missed
+        squares, dropped = {}, []
         for tr in live:
-            found = model.landmarks(frame, _predicted_roi(tr, t))
+            squares[tr.track_id] = _predicted_roi(tr, t)
+            found = model.landmarks(frame, squares[tr.track_id])
             landmark_calls += 1
             descriptor = describe(frame, found, config) if plausible(found, config) else None
             fit = dissimilarity(tr, descriptor, config) if descriptor is not None else float("nan")
             # A reading unlike the track's own person has slid onto someone else: lost, last seen where it was.
             if descriptor is None or fit > config.drift_dissimilarity:
                 tr.missed, tr.unlike = 1, []
+                dropped.append(tr)
                 continue
             tr.before, tr.last, tr.frames[t] = tr.last, found, found
             tr.descriptors[t] = descriptor
@@ -236,6 +238,9 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
             else:
                 tr.unlike = []
                 remember_fit(tr, fit, config)
+        if config.read_behind:
+            for tr in dropped:  # perhaps behind someone: read again with the others greyed out (.behind)
+                landmark_calls += _reread_behind(tr, frame, squares[tr.track_id], tracks, t, model, config)[0]
         live = [split(tr, t, tracks, lambda: _Track(len(tracks))) if moved(tr, config) else tr
                 for tr in list(tracks) if tr.missed == 0]
         lost = [tr for tr in tracks if 0 < tr.missed <= horizon]
@@ -250,6 +255,12 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
                     # One followed the other onto its person (its own was hidden): it is lost, last seen
                     # where it was. The one whose model fits worse, else the younger.
                     slid = _slid_onto_other(a, b, t, config)
+                    if config.read_behind and slid.track_id in squares:
+                        calls, taken = _reread_behind(slid, frame, squares[slid.track_id], tracks, t, model, config,
+                                                      replace=True)
+                        landmark_calls += calls
+                        if taken:
+                            continue
                     slid.frames.pop(t, None)
                     slid.descriptors.pop(t, None)
                     slid.last, slid.missed, slid.unlike = slid.before or slid.last, 1, []
@@ -264,6 +275,25 @@ def track_shot(frames: Iterable[np.ndarray], model, config: TrackerConfig = Trac
         drop_short_runs(tr, config.min_run)
     return assemble([tr for tr in tracks if len(tr.frames) >= config.min_frames], t + 1, image_size, config,
                      detector_calls, landmark_calls)
+
+
+def _reread_behind(track: _Track, frame: np.ndarray, square: bp.Roi, tracks: list[_Track], t: int, model,
+                   config: TrackerConfig, replace: bool = False) -> tuple[int, bool]:
+    """Read ``track``'s square in frame ``t`` again with the others read in it greyed out
+    (:func:`.behind.read_behind`); a reading taken makes the track live in frame ``t`` (``replace``: its
+    reading there, a duplicate of another's, is replaced). Returns the landmark calls made (0 or 1) and
+    whether a reading was taken."""
+    others = [(landmark_box(tr.frames[t]), pixels(tr.frames[t], config.paint_probability))
+              for tr in tracks if tr is not track and t in tr.frames]
+    got, calls = read_behind(frame, square, track, others, model, config)
+    if got is None:
+        return calls, False
+    found, descriptor = got
+    if not replace:
+        track.before = track.last
+    track.last, track.frames[t], track.missed, track.unlike = found, found, 0, []
+    track.descriptors[t] = descriptor
+    return calls, True
 
 
 def _lost_track_for(box: np.ndarray, descriptor: np.ndarray, lost: list[_Track],

@@ -81,6 +81,9 @@ class TrackerConfig:
     max_rejections: int = 2
     """Detections a frame may reject (no pose in the landmark pass, someone already followed) before the
     search stops."""
+    read_behind: bool = True
+    """Read a followed person's square again, with the others read in it greyed out, when its reading is
+    someone else's or another track's (:mod:`.behind`): someone partly behind another stays followed."""
     appearance: bool = True
     """Let each track's appearance model (:mod:`.track_appearance`) drop readings that slid onto someone
     else, settle which of two tracks on one person owns it, and pick which lost track is found again."""
