@@ -9,8 +9,9 @@ another person, and in half of them one reading serves both).
 
 Here that square is read once more, on a copy of the frame where every other person read in it is greyed
 out (their segmentation, as the detection rounds of :mod:`.pose_tracking` grey out the people they have
-found). The new reading is taken only when it is a plausible pose, is no other person's (box, pixels),
-and fits the track's appearance model like its own person (at most ``split_dissimilarity``).
+found). The new reading is taken only when it is a plausible pose standing within ``behind_max_roll`` of
+upright, is no other person's (box, pixels), and fits the track's appearance model like its own person (at
+most ``split_dissimilarity``).
 """
 
 from __future__ import annotations
@@ -65,7 +66,7 @@ def read_behind(frame: np.ndarray, roi: bp.Roi, track: _Track, others: list[tupl
     for _, mask in inside:
         canvas[mask] = 127
     found = model.landmarks(canvas, roi)
-    if not plausible(found, config):
+    if not plausible(found, config) or abs(bp.roi_from_landmarks(found).rotation) > config.behind_max_roll:
         return None, 1
     mine = pixels(found, config.mask_probability)
     if any(same_box(landmark_box(found), box, config) or same_pixels(mine, mask, config) for box, mask in inside):

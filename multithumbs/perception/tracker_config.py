@@ -84,6 +84,10 @@ class TrackerConfig:
     read_behind: bool = True
     """Read a followed person's square again, with the others read in it greyed out, when its reading is
     someone else's or another track's (:mod:`.behind`): someone partly behind another stays followed."""
+    behind_max_roll: float = 0.7853981633974483
+    """Largest turn from upright (radians; 45°) of the square a reading taken behind someone gives: a person
+    behind another stands as they do. On the suite the readings behind others were within 5° of upright,
+    and those past 70° were a rug read as a body lying on it, kept alive beside the person crossing it."""
     appearance: bool = True
     """Let each track's appearance model (:mod:`.track_appearance`) drop readings that slid onto someone
     else, settle which of two tracks on one person owns it, and pick which lost track is found again."""
