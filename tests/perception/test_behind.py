@@ -96,3 +96,31 @@ def test_someone_who_walks_out_from_behind_is_followed_back_behind():
     for config in (TrackerConfig(read_behind=False), TrackerConfig(backfill=0)):
         poses = track_shot(frames, ProminentModel(), config)
         assert identity_of(poses, frames, 1, 0) is None and identity_of(poses, frames, 1, 29) is not None
+
+
+def test_a_reading_behind_someone_that_lies_down_is_not_taken():
+    frames = render({0: [(200, 120)], 1: [(220, 120)]}, 1, order=[1, 0])
+    square = bp.Roi(np.array([205.0, 126]), 180.0, 0.0)
+    model = ProminentModel()
+    red = model.landmarks(frames[0], square)
+
+    class Lying(ProminentModel):
+        def __init__(self, degrees):
+            super().__init__()
+            self.turn = np.radians(degrees)
+
+        def landmarks(self, image, roi):
+            found = super().landmarks(image, roi)
+            hip, top = found.image[33, :2], found.image[34, :2]
+            d = top - hip  # turn the body axis about the hip
+            c, s = np.cos(self.turn), np.sin(self.turn)
+            points = found.image.copy()
+            points[34, :2] = hip + [c * d[0] - s * d[1], s * d[0] + c * d[1]]
+            return bp.Landmarks(found.presence, points, found.world, found.segmentation, found.roi)
+
+    for degrees, taken in ((30, True), (60, False), (-80, False)):
+        got, _ = read_behind(frames[0], square, _Track(1), [_other(red)], Lying(degrees), TrackerConfig())
+        assert (got is not None) == taken, degrees
+    got, _ = read_behind(frames[0], square, _Track(1), [_other(red)], Lying(60),
+                         TrackerConfig(behind_max_roll=np.radians(90)))
+    assert got is not None
