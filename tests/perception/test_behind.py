@@ -39,8 +39,8 @@ def _other(found):
 
 
 def _walks_behind(n=30):
-    """Red stands at x = 200; green walks in from the right and stops 32 px to red's right, behind red: 8 px
-    of green's 40 show, and red fills most of green's square."""
+    """Red stands at x = 200; green walks in from the right and stops 32 px to red's right, behind red: 32
+    of green's 40 px show, and red, whole, has more pixels in green's square than green."""
     red = [(200, 120)] * n
     green = [(360 - 8 * t, 120) if t < 17 else (232, 120) for t in range(n)]
     return render({0: red, 1: green}, n, order=[1, 0])
