@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from multithumbs.perception import blazepose as bp
-from multithumbs.perception.pose_checks import describe, dissimilarity, plausible, same_box, same_pixels
+from multithumbs.perception.pose_checks import box_iou, describe, dissimilarity, plausible, same_box, same_pixels
 from multithumbs.perception.shot_assembly import landmark_box
 
 if TYPE_CHECKING:  # annotations only: pose_tracking defines the track
@@ -44,10 +44,6 @@ def _square_box(roi: bp.Roi) -> np.ndarray:
     return np.concatenate([corners.min(0), corners.max(0)])
 
 
-def _overlaps(box_a: np.ndarray, box_b: np.ndarray) -> bool:
-    return bool(np.all(np.minimum(box_a[2:], box_b[2:]) > np.maximum(box_a[:2], box_b[:2])))
-
-
 def read_behind(frame: np.ndarray, roi: bp.Roi, track: _Track, others: list[tuple[np.ndarray, np.ndarray]], model,
                 config: TrackerConfig) -> tuple[tuple[bp.Landmarks, np.ndarray] | None, int]:
     """``track``'s reading in ``roi`` with the others in it greyed out, and its appearance descriptor, or
@@ -59,7 +55,7 @@ def read_behind(frame: np.ndarray, roi: bp.Roi, track: _Track, others: list[tupl
             pixels (those greyed out, and those a reading must not mostly be).
     """
     square = _square_box(roi)
-    inside = [(box, mask) for box, mask in others if _overlaps(box, square)]
+    inside = [(box, mask) for box, mask in others if box_iou(box, square) > 0]
     if not inside:
         return None, 0  # nobody to be behind: the reading failed for another reason
     canvas = frame.copy()

@@ -148,7 +148,8 @@ def floor_offsets(tracks: PersonTracks, config: FloorCheckConfig = FloorCheckCon
     seen &= depths > 0
     depths, heights = np.where(seen, depths, 1.0), np.where(seen, heights, 1.0)  # no division by 0 where unseen
     offsets, scatters = np.full(tracks.num_people, np.nan), np.full(tracks.num_people, np.nan)
-    cut = cut_by_edge(tracks.masks, tracks.valid, tracks.image_size[1]) & (not config.judge_cut)
+    cut = (np.zeros(tracks.num_people, bool) if config.judge_cut
+           else cut_by_edge(tracks.masks, tracks.valid, tracks.image_size[1]))
     for p in range(tracks.num_people):
         if not seen[p].any() or tracks.valid[p].sum() > config.max_readings or cut[p]:
             continue

@@ -72,7 +72,7 @@ def test_no_one_else_in_the_square_means_no_second_reading():
     assert got is None and used == 0 and model.landmark_calls == calls
 
 
-def test_a_reading_of_someone_in_the_square_is_not_taken():
+def test_a_wholly_hidden_person_gives_nothing_and_a_half_seen_one_their_own_box():
     # Green wholly hidden: with red greyed out the square holds no one, and nothing is taken.
     frames = render({0: [(200, 120)], 1: [(200, 120)]}, 1, order=[1, 0])
     model = ProminentModel()
@@ -124,3 +124,19 @@ def test_a_reading_behind_someone_that_lies_down_is_not_taken():
     got, _ = read_behind(frames[0], square, _Track(1), [_other(red)], Lying(60),
                          TrackerConfig(behind_max_roll=np.radians(90)))
     assert got is not None
+
+
+def test_a_second_reading_that_is_still_the_person_in_front_is_not_taken():
+    # A stand-in that reads red whatever was greyed out: its reading is red's box and pixels, so it is
+    # someone else's, and it is refused.
+    frames = render({0: [(200, 120)], 1: [(220, 120)]}, 1, order=[1, 0])
+    square = bp.Roi(np.array([205.0, 126]), 180.0, 0.0)
+    red = ProminentModel().landmarks(frames[0], square)
+
+    class SeesRed(ProminentModel):
+        def landmarks(self, image, roi):
+            self.landmark_calls += 1
+            return red
+
+    got, used = read_behind(frames[0], square, _Track(1), [_other(red)], SeesRed(), TrackerConfig())
+    assert got is None and used == 1
