@@ -14,7 +14,7 @@ this measures perception alone). Printed per scene and over the suite:
   landmarks (BlazePose's detector + landmark model + tracking) and fitting.
 
     .venv/bin/python benchmarks/cpu_perception.py [--scenes s01_two_people_20deg,...] [--runs 1]
-        [--no-fit] [--no-facing] [--no-ground] [--no-head] [--no-behind] [--detector nanodet|hog] [--json OUT]
+        [--no-fit] [--no-facing] [--no-ground] [--no-head] [--no-behind] [--no-bridge] [--detector nanodet|hog] [--json OUT]
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ def padded_landmark_boxes(boxes: np.ndarray, image_size: tuple[int, int]) -> np.
 
 
 def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool = True,
-                detector: str = "nanodet", head: bool = True, behind: bool = True) -> dict:
+                detector: str = "nanodet", head: bool = True, behind: bool = True, bridge: bool = True) -> dict:
     import torch
 
     from multithumbs.body.model import load_body_model
@@ -81,6 +81,8 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
         config = dataclasses.replace(config, head=dataclasses.replace(config.head, enabled=False))
     if not behind:
         config = dataclasses.replace(config, tracker=dataclasses.replace(config.tracker, read_behind=False))
+    if not bridge:
+        config = dataclasses.replace(config, gaps=dataclasses.replace(config.gaps, max_gap=0))
     seconds = {"landmarks": 0.0, "detection": 0.0, "fitting": 0.0}
     proposals = person_proposals(config, seconds=seconds)
     tallies = np.zeros(4, np.int64)
@@ -104,7 +106,7 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
             floor_flow = shot_floor_flow(video.frames[a:b], poses, config)
             face = shot_face_evidence(video.frames[a:b], poses, config)
             tracks = poses_to_tracks(poses, true_tr.shot_index, a, K, (h, w), body, config.fit, config.facing,
-                                     floor_flow, face)
+                                     floor_flow, face, config.floor, config.gaps)
             seconds["fitting"] += time.perf_counter() - start
             pred_kp = tracks.keypoints2d
             with torch.no_grad():
@@ -167,6 +169,8 @@ def main() -> None:
     parser.add_argument("--no-behind", action="store_true",
                         help="do not read a lost person's square again with the others greyed out "
                              "(multithumbs/perception/behind.py)")
+    parser.add_argument("--no-bridge", action="store_true",
+                        help="leave the gaps inside a track empty (multithumbs/perception/gap_fill.py)")
     parser.add_argument("--detector", default="nanodet", choices=("nanodet", "hog"),
                         help="where the tracker's person proposals come from")
     parser.add_argument("--json", default=None, help="write the per-scene results here")
@@ -174,7 +178,7 @@ def main() -> None:
     names = args.scenes.split(",") if args.scenes else [s.name for s in suite("standard")]
     runs = [[score_scene(n, fit=not args.no_fit, facing=not args.no_facing, ground=not args.no_ground,
                          detector=args.detector, head=not args.no_head,
-                         behind=not args.no_behind) for n in names] for _ in range(args.runs)]
+                         behind=not args.no_behind, bridge=not args.no_bridge) for n in names] for _ in range(args.runs)]
     rows = runs[0]
     keys = ("recall", "precision", "switches", "pck", "mpjpe", "pa_mpjpe", "detection_s_per_frame",
             "landmark_s_per_frame", "fit_s_per_frame")

@@ -157,7 +157,9 @@ class PersonTracks(_Checked):
         K: ``(3, 3)`` intrinsics the estimator assumed for ``transl``.
         appearance: ``(P, T, D)`` appearance descriptors; meaningful where ``appearance_valid``.
         appearance_valid: ``(P, T)`` bool.
-        valid: ``(P, T)`` bool, the person was detected in that frame.
+        valid: ``(P, T)`` bool, the person has a body in that frame: detected there, or carried across a
+            short gap between two detections (the CPU backend's :mod:`multithumbs.perception.gap_fill`;
+            keypoint confidence 0 and no mask there).
     """
 
     shot_index: int

@@ -25,7 +25,7 @@ from storage.codecs import decode, encode
 from storage.keys import artifact_key
 from storage.store import ArtifactRef, ArtifactStore, CorruptArtifact
 
-STAGE_VERSIONS = {"simulate_inputs": 3, "ground_truth": 1, "shots": 2, "perception": 33, "trajectory": 2, "space": 2,
+STAGE_VERSIONS = {"simulate_inputs": 3, "ground_truth": 1, "shots": 2, "perception": 34, "trajectory": 2, "space": 2,
                   "focal": 3, "align": 6, "propagate": 4, "reid": 4, "post": 3, "evaluate": 1}
 """Bump a stage's version when its code changes its output: its key and every key after it change.
 (Torch stages bumped together when every stage came to compute with one thread, :func:`compute_fixed`.)
@@ -36,7 +36,8 @@ stage 23 with ``TrackerConfig.reread=0``; 25 is the facing's turn cost 4; 26 dro
 it; 29 mirrors a twisted reading's hips and legs onto its shoulders' side; 30 labels frames whose hips are unseen
 across the shoulders and reads the walk from bodies seen to one foot inside the image; 31 counts the walk's
 motion along the view at half; 32 leaves tracks the frame's edge cuts unjudged by the floor check; 33 reads a
-lost person's square again with the others greyed out, :mod:`multithumbs.perception.behind`; the next is 34)."""
+lost person's square again with the others greyed out, :mod:`multithumbs.perception.behind`; 34 bridges short
+gaps inside a track, :mod:`multithumbs.perception.gap_fill`; the next is 35)."""
 
 
 @functools.lru_cache(maxsize=8)

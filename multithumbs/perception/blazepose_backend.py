@@ -15,10 +15,13 @@ The ``blazepose`` perception source (the default of ``multithumbs run``). For ea
    trunk towards the walk, and the shot is fitted again (:mod:`.facing`); the walk is read with the
    camera's own motion taken out, as the floor at each person's feet shows it (:mod:`.ground_motion`);
 5. short tracks whose feet are off the floor the shot's other people stand on are dropped: BlazePose
-   read a pattern (a rug, the torso of someone close to the camera) as a person (:mod:`.floor_check`).
+   read a pattern (a rug, the torso of someone close to the camera) as a person (:mod:`.floor_check`);
+6. short gaps inside a track are bridged by the body between the readings on either side (:mod:`.gap_fill`).
 
 Masks come from BlazePose's segmentation. Appearance is described afterwards from the pixels, as for every
-source (:mod:`.appearance`). Frames where a person was not followed stay invalid.
+source (:mod:`.appearance`). A gap of a few frames inside a track is bridged by the body between the
+readings around it, with no keypoint confidence there (:mod:`.gap_fill`); other frames where a person was
+not followed stay invalid.
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ from multithumbs.perception.body_fit import BodyFitConfig, FittedBodies, fit_bod
 from multithumbs.perception.facing import (HIP_LANDMARKS, SHOULDER_LANDMARKS, FacingConfig, body_seen, facing_flips,
                                            landmarks_seen, mirrored, root_velocity, untwisted, walk_headings)
 from multithumbs.perception.floor_check import FloorCheckConfig, drop_off_floor
+from multithumbs.perception.gap_fill import GapFillConfig, bridge_gaps
 from multithumbs.perception.ground_motion import GroundMotionConfig, ground_flow, static_velocity
 from multithumbs.perception.head_colour import HeadColourConfig, face_evidence, head_samples
 from multithumbs.perception.joints import blazepose33_to_smpl24
@@ -60,6 +64,8 @@ class BlazePoseConfig:
     """How the facing reads a face or the back of a head from the head's colours (:mod:`.head_colour`)."""
     floor: FloorCheckConfig = field(default_factory=FloorCheckConfig)
     """Which short tracks are dropped for feet off the shot's floor (:mod:`.floor_check`)."""
+    gaps: GapFillConfig = field(default_factory=GapFillConfig)
+    """Which gaps inside a track are bridged by the body between the readings around them (:mod:`.gap_fill`)."""
     num_threads: int = 2
     """Threads of each tflite interpreter."""
     person_detector: str = "nanodet"
@@ -153,11 +159,13 @@ def shot_face_evidence(frames, poses: ShotPoses, config: BlazePoseConfig) -> np.
 def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.ndarray, image_size: tuple[int, int],
                     body=None, config: BodyFitConfig | None = None,
                     facing: FacingConfig = FacingConfig(), floor_flow: np.ndarray | None = None,
-                    face: np.ndarray | None = None, floor: FloorCheckConfig = FloorCheckConfig()) -> PersonTracks:
+                    face: np.ndarray | None = None, floor: FloorCheckConfig = FloorCheckConfig(),
+                    gaps: GapFillConfig = GapFillConfig()) -> PersonTracks:
     """One shot's :class:`PersonTracks` from the people BlazePose followed (module docstring, steps 2–5);
     ``floor_flow (P, T, 2)``, when given, is the floor's shift at each person's feet
     (:func:`.ground_motion.ground_flow`), which takes the camera's motion out of the walk; ``face (P, T)``,
-    when given, is where each head shows a face or its back (:func:`shot_face_evidence`)."""
+    when given, is where each head shows a face or its back (:func:`shot_face_evidence`). Tracks of no one
+    are dropped (``floor``), then short gaps in the others bridged (``gaps``)."""
     p, t = poses.valid.shape
     h, w = image_size
     if body is None:
@@ -178,12 +186,12 @@ def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.n
     world, turns = walk_headings(world, walk, judged & poses.valid, facing, view)
     if flips.any() or turns.any():
         keypoints, fitted = _fit(image, world, poses.valid, K, body, config)
-    return drop_off_floor(PersonTracks(
+    return bridge_gaps(drop_off_floor(PersonTracks(
         shot_index=shot_index, start_frame=start_frame, track_ids=poses.track_ids,
         global_orient=fitted.global_orient, body_pose=fitted.body_pose, betas=fitted.betas, transl=fitted.transl,
         keypoints2d=keypoints, masks=poses.masks if p else np.zeros((0, t, h, (w + 7) // 8), np.uint8),
         image_size=(h, w), K=np.asarray(K, np.float64), appearance=np.zeros((p, t, DESCRIPTOR_SIZE)),
-        appearance_valid=np.zeros((p, t), bool), valid=poses.valid), floor)
+        appearance_valid=np.zeros((p, t), bool), valid=poses.valid), floor), body, gaps)
 
 
 def person_proposals(config: BlazePoseConfig, detector=None, seconds: dict | None = None):
@@ -254,7 +262,7 @@ def blazepose_tracks(frames: Iterable[np.ndarray], shots: Shots, K: np.ndarray, 
         floor_flow = shot_floor_flow(shot_frames, poses, config)
         face = shot_face_evidence(shot_frames, poses, config)
         out.append(poses_to_tracks(poses, k, a, K, image_size, body, config.fit, config.facing, floor_flow, face,
-                                   config.floor))
+                                   config.floor, config.gaps))
         seconds["fitting"] += time.perf_counter() - start
     return out, StageSeconds(seconds["landmarks"], seconds["detection"], seconds["fitting"], calls["detector"],
                              calls["landmark"], shots.num_frames)
