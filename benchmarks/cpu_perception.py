@@ -14,7 +14,8 @@ this measures perception alone). Printed per scene and over the suite:
   landmarks (BlazePose's detector + landmark model + tracking) and fitting.
 
     .venv/bin/python benchmarks/cpu_perception.py [--scenes s01_two_people_20deg,...] [--runs 1]
-        [--no-fit] [--no-facing] [--no-ground] [--no-head] [--no-behind] [--no-bridge] [--detector nanodet|hog] [--json OUT]
+        [--no-fit] [--no-facing] [--no-ground] [--no-head] [--no-behind] [--no-bridge]
+        [--detector nanodet|hog] [--json OUT]
 """
 
 from __future__ import annotations

@@ -161,7 +161,7 @@ def poses_to_tracks(poses: ShotPoses, shot_index: int, start_frame: int, K: np.n
                     facing: FacingConfig = FacingConfig(), floor_flow: np.ndarray | None = None,
                     face: np.ndarray | None = None, floor: FloorCheckConfig = FloorCheckConfig(),
                     gaps: GapFillConfig = GapFillConfig()) -> PersonTracks:
-    """One shot's :class:`PersonTracks` from the people BlazePose followed (module docstring, steps 2–5);
+    """One shot's :class:`PersonTracks` from the people BlazePose followed (module docstring, steps 2–6);
     ``floor_flow (P, T, 2)``, when given, is the floor's shift at each person's feet
     (:func:`.ground_motion.ground_flow`), which takes the camera's motion out of the walk; ``face (P, T)``,
     when given, is where each head shows a face or its back (:func:`shot_face_evidence`). Tracks of no one

@@ -2,8 +2,9 @@
 
 A person walking behind someone, or read badly for a few frames, leaves a gap in their track although
 the tracker picks them up again as the same person. A tracker of the field does not let the mesh blink
-out there: PHALP keeps predicting a lost track for up to 50 frames (``max_age_track``), and MOT trackers
-(ByteTrack, OC-SORT) interpolate boxes across gaps of up to 20 frames. Here a gap of at most
+out there: PHALP keeps predicting a lost track for up to 50 frames (``max_age_track``), and MOT trackers'
+post-processing (ByteTrack's ``interpolation.py``, ``n_dti=20``; mmtracking's ``InterpolateTracklets``)
+fills gaps of up to 20 frames with boxes interpolated linearly. Here a gap of at most
 ``max_gap`` frames between two readings of one track is filled with the body between them: the SMPL
 translation linearly, the root and joint rotations by slerp, the shape unchanged (one per track).
 
@@ -30,7 +31,7 @@ class GapFillConfig:
 
     max_gap: int = 20
     """Longest run of frames without a reading, between two readings of the same track, that is bridged
-    (frames; 0 bridges nothing). ByteTrack's interpolation bridges up to 20 frames."""
+    (frames; 0 bridges nothing). ByteTrack's and mmtracking's interpolation bridge up to 20."""
 
 
 def bridgeable(valid: np.ndarray, max_gap: int) -> np.ndarray:
