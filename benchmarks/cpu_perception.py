@@ -179,7 +179,8 @@ def main() -> None:
     names = args.scenes.split(",") if args.scenes else [s.name for s in suite("standard")]
     runs = [[score_scene(n, fit=not args.no_fit, facing=not args.no_facing, ground=not args.no_ground,
                          detector=args.detector, head=not args.no_head,
-                         behind=not args.no_behind, bridge=not args.no_bridge) for n in names] for _ in range(args.runs)]
+                         behind=not args.no_behind, bridge=not args.no_bridge) for n in names]
+            for _ in range(args.runs)]
     rows = runs[0]
     keys = ("recall", "precision", "switches", "pck", "mpjpe", "pa_mpjpe", "detection_s_per_frame",
             "landmark_s_per_frame", "fit_s_per_frame")

@@ -69,7 +69,8 @@ def test_a_walker_turning_and_bending_at_a_steady_rate_is_bridged_exactly(body):
     bridged = bridge_gaps(_with_gap(truth, gap), body, GapFillConfig(max_gap=12))
     assert bridged.valid.all()
     np.testing.assert_allclose(bridged.transl, truth.transl, atol=1e-12)
-    angle = Rotation.from_rotvec(bridged.global_orient[0, gap]).inv() * Rotation.from_rotvec(truth.global_orient[0, gap])
+    angle = Rotation.from_rotvec(bridged.global_orient[0, gap]).inv() * Rotation.from_rotvec(
+        truth.global_orient[0, gap])
     assert np.degrees(angle.magnitude()).max() < 1e-6
     np.testing.assert_allclose(bridged.body_pose, truth.body_pose, atol=1e-9)
     # The bridged keypoints are the body's joints through K, posed and projected here independently.
