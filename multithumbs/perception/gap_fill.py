@@ -81,5 +81,7 @@ def bridge_gaps(tracks: PersonTracks, body, config: GapFillConfig = GapFillConfi
         uvw = joints @ np.asarray(tracks.K, np.float64).T
         keypoints[people, frames, :, :2] = uvw[..., :2] / np.maximum(uvw[..., 2:], 1e-6)
         keypoints[people, frames, :, 2] = 0.0
-    return replace(tracks, global_orient=orient, body_pose=pose, transl=transl, keypoints2d=keypoints,
+    masks = tracks.masks.copy()
+    masks[fill] = 0  # padding may hold anything (docs/CONVENTIONS.md); a bridged frame shows no pixels
+    return replace(tracks, global_orient=orient, body_pose=pose, transl=transl, keypoints2d=keypoints, masks=masks,
                    valid=tracks.valid | fill)
