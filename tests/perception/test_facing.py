@@ -8,8 +8,7 @@ import torch
 from multithumbs.perception.facing import (BLAZEPOSE_MIRROR, LOWER_BODY, FacingConfig, body_forward, body_seen,
                                            evidence_speed, facing_flips, landmarks_seen, mirrored, reading_forward,
                                            root_velocity, twisted, untwisted, walk_headings)
-from multithumbs.perception.joints import BLAZEPOSE33_TO_SMPL24
-from multithumbs.perception.pose_tracking import ShotPoses
+from tests.perception.readings import body_reading
 
 K = np.array([[500.0, 0, 320], [0, 500.0, 180], [0, 0, 1]])
 UPRIGHT_FACING_CAMERA = np.array([np.pi, 0.0, 0.0])   # SMPL's y-up body in the camera frame (+y down)
@@ -243,20 +242,6 @@ def test_frames_whose_hips_are_unseen_are_labelled_across_the_shoulders():
     assert not facing_flips(world, velocity, hips_seen, judged).any()   # unlinked: the readings are kept
 
 
-def _reading(body, orient: np.ndarray, transl: np.ndarray) -> ShotPoses:
-    """BlazePose-shaped landmarks of a zero-pose body: its 12 mapped joints projected, world about the hips."""
-    t = len(transl)
-    with torch.no_grad():
-        joints = body.joints(np.tile(orient, (t, 1)), np.zeros((t, 23, 3)), np.zeros((t, 10)), transl).double().numpy()
-    image, world = np.zeros((1, t, 33, 5)), np.zeros((1, t, 33, 3))
-    uv = joints @ K.T
-    for landmark, joint in BLAZEPOSE33_TO_SMPL24.items():
-        image[0, :, landmark, :2] = uv[:, joint, :2] / uv[:, joint, 2:]
-        image[0, :, landmark, 3:] = 1.0
-        world[0, :, landmark] = joints[:, joint] - 0.5 * (joints[:, 1] + joints[:, 2])
-    boxes = np.concatenate([image[..., :2].min(-2), image[..., :2].max(-2)], -1)
-    return ShotPoses(np.array([0]), image, world, boxes, np.zeros((1, t, 360, 80), np.uint8), np.ones((1, t), bool))
-
 
 def test_a_body_is_seen_with_both_hips_and_one_legs_knee_and_ankle_inside_the_image():
     image = np.ones((5, 33, 5))
@@ -275,7 +260,7 @@ def test_a_walk_without_legs_in_view_says_nothing(body):
     from multithumbs.perception.blazepose_backend import poses_to_tracks
 
     transl = np.stack([np.zeros(16), np.full(16, 0.3), 4.0 + 0.04 * np.arange(16)], -1)
-    reading = _reading(body, UPRIGHT_FACING_CAMERA, transl)
+    reading = body_reading(body, UPRIGHT_FACING_CAMERA, transl, K)
     reading.image[..., 25:29, 3] = 0.2  # knees and ankles out of the frame: a close-up
     tracks = poses_to_tracks(reading, 0, 0, K, (360, 640), body)
     kept = poses_to_tracks(reading, 0, 0, K, (360, 640), body, facing=FacingConfig(enabled=False))
@@ -290,7 +275,7 @@ def test_a_back_read_as_a_front_is_mirrored_when_the_person_walks(body, walking)
     # place, which projects where the back does with every side's name exchanged (BlazePose's confusion).
     depth = 4.0 + (0.04 * np.arange(16) if walking else np.zeros(16))
     transl = np.stack([np.zeros(16), np.full(16, 0.3), depth], -1)
-    reading = _reading(body, UPRIGHT_FACING_CAMERA, transl)
+    reading = body_reading(body, UPRIGHT_FACING_CAMERA, transl, K)
     tracks = poses_to_tracks(reading, 0, 0, K, (360, 640), body)
     kept = poses_to_tracks(reading, 0, 0, K, (360, 640), body, facing=FacingConfig(enabled=False))
     left_of_right = tracks.keypoints2d[0, :, 1, 0] < tracks.keypoints2d[0, :, 2, 0]   # left hip at image left
@@ -360,7 +345,7 @@ def test_an_oblique_reading_of_a_walker_is_fitted_closer_to_their_facing(body):
     # Truth: seen from behind, walking away. The reading's 2D is exact, its 3D turned 50° about the
     # vertical (BlazePose's yaw of a back seen obliquely, docs/RESULTS.md session 21).
     transl = np.stack([np.zeros(16), np.full(16, 0.3), 4.0 + 0.04 * np.arange(16)], -1)
-    reading = _reading(body, UPRIGHT_FACING_AWAY, transl)
+    reading = body_reading(body, UPRIGHT_FACING_AWAY, transl, K)
     reading.world[...] = _yawed(reading.world, 50.0)
     errors = {}
     for heading in (True, False):
@@ -379,7 +364,7 @@ def test_a_standing_back_read_as_a_front_follows_the_head_on_whole_bodies_only(b
     # As above, standing: the head's colours say "back of a head" in every frame. They decide where the
     # whole body is seen; on a close-up (legs out of view) the reading is kept, as the walk's would be.
     transl = np.stack([np.zeros(16), np.full(16, 0.3), np.full(16, 4.0)], -1)
-    reading = _reading(body, UPRIGHT_FACING_CAMERA, transl)
+    reading = body_reading(body, UPRIGHT_FACING_CAMERA, transl, K)
     if not whole_body:
         reading.image[..., 25:29, 3] = 0.2
     tracks = poses_to_tracks(reading, 0, 0, K, (360, 640), body, face=-np.ones((1, 16)))
@@ -395,7 +380,7 @@ def test_a_reading_whose_hips_face_the_camera_under_a_back_is_fitted_as_a_back(b
     # Truth: seen from behind, walking away. In three of the first frames the reading's hips and legs are
     # a front's (s09's first track, docs/RESULTS.md session 29): twisted half a turn under the shoulders.
     transl = np.stack([np.zeros(16), np.full(16, 0.3), 4.0 + 0.04 * np.arange(16)], -1)
-    reading = _reading(body, UPRIGHT_FACING_AWAY, transl)
+    reading = body_reading(body, UPRIGHT_FACING_AWAY, transl, K)
     twist = np.zeros((1, 16), bool)
     twist[0, [1, 2, 4]] = True
     image, world = mirrored(reading.image, reading.world, twist, LOWER_BODY)

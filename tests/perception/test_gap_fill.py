@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from multithumbs.perception.gap_fill import GapFillConfig, bridge_gaps, bridgeable
 from multithumbs.types import PersonTracks
+from tests.perception.readings import body_reading
 
 K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 180.0], [0.0, 0.0, 1.0]])
 FRAMES = 30
@@ -102,26 +103,6 @@ def test_a_track_that_ends_is_not_carried_on(body):
     assert bridge_gaps(tracks, body) is tracks
 
 
-def _reading(body, transl: np.ndarray, seen: np.ndarray):
-    """BlazePose-shaped landmarks of a zero-pose body facing the camera at ``transl (T, 3)``: its 12 mapped
-    joints projected, world about the hips; nothing where ``seen (T,)`` is false."""
-    from multithumbs.perception.joints import BLAZEPOSE33_TO_SMPL24
-    from multithumbs.perception.pose_tracking import ShotPoses
-
-    t = len(transl)
-    with torch.no_grad():
-        joints = body.joints(np.tile([np.pi, 0.0, 0.0], (t, 1)), np.zeros((t, 23, 3)), np.zeros((t, 10)),
-                             transl).double().numpy()
-    image, world = np.zeros((1, t, 33, 5)), np.zeros((1, t, 33, 3))
-    uv = joints @ K.T
-    for landmark, joint in BLAZEPOSE33_TO_SMPL24.items():
-        image[0, :, landmark, :2] = uv[:, joint, :2] / uv[:, joint, 2:]
-        image[0, :, landmark, 3:] = 1.0
-        world[0, :, landmark] = joints[:, joint] - 0.5 * (joints[:, 1] + joints[:, 2])
-    image[0, ~seen], world[0, ~seen] = 0.0, 0.0
-    boxes = np.concatenate([image[..., :2].min(-2), image[..., :2].max(-2)], -1)
-    return ShotPoses(np.array([0]), image, world, boxes, np.zeros((1, t, 360, 80), np.uint8), seen[None].copy())
-
 
 def test_the_cpu_backend_bridges_a_walker_unseen_for_six_frames(body):
     from multithumbs.perception.blazepose_backend import poses_to_tracks
@@ -129,7 +110,7 @@ def test_the_cpu_backend_bridges_a_walker_unseen_for_six_frames(body):
     transl = np.stack([-0.5 + 0.04 * np.arange(20), np.full(20, 0.3), np.full(20, 4.0)], -1)
     seen = np.ones(20, bool)
     seen[8:14] = False
-    reading = _reading(body, transl, seen)
+    reading = body_reading(body, np.array([np.pi, 0.0, 0.0]), transl, K, seen)
     tracks = poses_to_tracks(reading, 0, 0, K, (360, 640), body)
     assert tracks.valid.all()
     assert (tracks.keypoints2d[0, ~seen, :, 2] == 0).all() and (tracks.keypoints2d[0, seen, 1, 2] > 0).all()

@@ -83,13 +83,14 @@ def test_a_static_points_velocity_is_the_shift_at_the_roots_depth():
 
 def test_a_person_standing_before_a_dolly_is_not_mirrored_when_the_floor_shows_the_camera_move(body):
     from multithumbs.perception.blazepose_backend import poses_to_tracks
-    from tests.perception.test_facing import K, UPRIGHT_FACING_CAMERA, _reading
+    from tests.perception.readings import body_reading
+    from tests.perception.test_facing import K, UPRIGHT_FACING_CAMERA
 
     # Truth: a person standing, facing the camera, read rightly, while the camera dollies sideways: the root
     # moves 12.5 mm a frame towards -x in the camera frame, and the fit's depth wanders away by 3 mm a frame.
     # In the camera frame that is a walk, fast enough to count, with a part away from the camera.
     transl = np.stack([0.5 - 0.0125 * np.arange(16), np.full(16, 0.3), 4.0 + 0.003 * np.arange(16)], -1)
-    reading = _reading(body, UPRIGHT_FACING_CAMERA, transl)
+    reading = body_reading(body, UPRIGHT_FACING_CAMERA, transl, K)
     kept = poses_to_tracks(reading, 0, 0, K, (360, 640), body, facing=FacingConfig(enabled=False))
     camera_only = poses_to_tracks(reading, 0, 0, K, (360, 640), body)
     assert not np.array_equal(camera_only.keypoints2d, kept.keypoints2d)   # mirrored: the dolly read as a walk
