@@ -11,11 +11,14 @@ this measures perception alone). Printed per scene and over the suite:
   new id counts one);
 * per-frame MPJPE and PA-MPJPE (mm, pelvis-aligned camera-frame joints) of the fitted bodies;
 * seconds per frame, split into the person detector (NanoDet, whose boxes are the tracker's proposals),
-  landmarks (BlazePose's detector + landmark model + tracking) and fitting.
+  landmarks (BlazePose's detector + landmark model + tracking) and fitting;
+* with ``--misses``, the eligible person-frames left unpaired, by why and where
+  (``multithumbs.metrics.perception.miss_kinds``): nobody near, a track whose box is off, or a track
+  paired with someone overlapping; before the person's first paired frame, between two, after the last.
 
     .venv/bin/python benchmarks/cpu_perception.py [--scenes s01_two_people_20deg,...] [--runs 1]
         [--no-fit] [--no-facing] [--no-ground] [--no-head] [--no-behind] [--no-bridge]
-        [--detector nanodet|hog] [--json OUT]
+        [--detector nanodet|hog] [--misses] [--json OUT]
 """
 
 from __future__ import annotations
@@ -51,7 +54,8 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
     from multithumbs.body.model import load_body_model
     from multithumbs.determinism import fix_threads
     from multithumbs.metrics.identity import count_id_switches
-    from multithumbs.metrics.perception import detection_counts, eligible_people, match_people, pck, silhouette_boxes
+    from multithumbs.metrics.perception import (detection_counts, eligible_people, match_people, miss_kinds, pck,
+                                                silhouette_boxes)
     from multithumbs.metrics.pose import mpjpe, pa_mpjpe
     from multithumbs.perception.blazepose_backend import (BlazePoseConfig, poses_to_tracks, shot_face_evidence,
                                                           shot_floor_flow)
@@ -90,6 +94,7 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
     correct = counted = 0
     errors, pa_errors = [], []
     frames = switches = 0
+    misses: dict[str, int] = {}
     for true_tr, (a, b) in zip(truth, video.truth.world.shots().ranges):
         start, detected = time.perf_counter(), seconds["detection"]
         poses = track_shot(video.frames[a:b], model, config.tracker, people=proposals)
@@ -124,6 +129,8 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
         counts = detection_counts(matched, eligible, pred_valid)
         tallies += [counts.true_positives, counts.eligible, counts.predictions, counts.false_positives]
         switches += count_id_switches(matched).total
+        for (kind, place), n in miss_kinds(matched, eligible, true_boxes, pred_boxes, pred_valid).items():
+            misses[f"{kind}/{place}"] = misses.get(f"{kind}/{place}", 0) + n
         people, times = np.nonzero((matched >= 0) & eligible)
         pred_index = matched[people, times]
         joints = np.zeros(24, bool)
@@ -150,8 +157,23 @@ def score_scene(name: str, fit: bool = True, facing: bool = True, ground: bool =
         "pa_mpjpe": float(np.concatenate(pa_errors).mean()) if pa_errors else float("nan"),
         "landmark_s_per_frame": seconds["landmarks"] / frames, "detection_s_per_frame": seconds["detection"] / frames,
         "fit_s_per_frame": seconds["fitting"] / frames,
-        "people": int(video.truth.world.valid.shape[0]), "switches": switches,
+        "people": int(video.truth.world.valid.shape[0]), "switches": switches, "misses": misses,
     }
+
+
+def _print_misses(rows: list[dict]) -> None:
+    """Missed person-frames per scene: by why (none, box_off, taken), then by where (before, between, after,
+    never), and all of them."""
+    from multithumbs.metrics.perception import MISS_KINDS, MISS_PLACES
+
+    def total(row: dict, part: str) -> int:
+        return sum(n for key, n in row["misses"].items() if part in key.split("/"))
+
+    columns = MISS_KINDS + MISS_PLACES
+    print(f"\n{'missed frames':<14} " + " ".join(f"{c:>7}" for c in columns) + f" {'all':>5}")
+    for row in rows + [{"scene": "all", "misses": {k: sum(r["misses"][k] for r in rows) for k in rows[0]["misses"]}}]:
+        print(f"{row['scene'][:14]:<14} " + " ".join(f"{total(row, c):>7}" for c in columns)
+              + f" {sum(row['misses'].values()):>5}")
 
 
 def main() -> None:
@@ -174,6 +196,8 @@ def main() -> None:
                         help="leave the gaps inside a track empty (multithumbs/perception/gap_fill.py)")
     parser.add_argument("--detector", default="nanodet", choices=("nanodet", "hog"),
                         help="where the tracker's person proposals come from")
+    parser.add_argument("--misses", action="store_true",
+                        help="also print the missed person-frames by why and where (first run)")
     parser.add_argument("--json", default=None, help="write the per-scene results here")
     args = parser.parse_args()
     names = args.scenes.split(",") if args.scenes else [s.name for s in suite("standard")]
@@ -195,6 +219,8 @@ def main() -> None:
     print(f"{'mean':<32} {'':>2} {total['recall']:6.3f} {total['precision']:6.3f} {total['switches']:4.1f} "
           f"{total['pck']:6.3f} {total['mpjpe']:6.1f} {total['pa_mpjpe']:6.1f} "
           f"{total['detection_s_per_frame']:7.3f} {total['landmark_s_per_frame']:7.3f} {total['fit_s_per_frame']:7.3f}")
+    if args.misses:
+        _print_misses(rows)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(runs, f, indent=1)

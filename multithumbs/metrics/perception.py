@@ -150,6 +150,49 @@ def detection_counts(matched: np.ndarray, eligible: np.ndarray, pred_valid: np.n
                            int((pred_valid & ~paired_pred).sum()))
 
 
+MISS_KINDS = ("none", "box_off", "taken")
+"""Why an eligible person went unpaired (:func:`miss_kinds`)."""
+
+MISS_PLACES = ("before", "between", "after", "never")
+"""Where in the person's own paired frames a miss lies (:func:`miss_kinds`)."""
+
+
+def miss_kinds(matched: np.ndarray, eligible: np.ndarray, true_boxes: np.ndarray, pred_boxes: np.ndarray,
+               pred_valid: np.ndarray, min_iou: float = MIN_IOU, near_iou: float = 0.1) -> dict[tuple[str, str], int]:
+    """The eligible true person-frames :func:`match_people` left unpaired, counted by why and where.
+
+    Why (:data:`MISS_KINDS`), from the valid prediction whose box overlaps the person's most: ``"none"``,
+    no prediction reaches ``near_iou`` (nobody followed them there); ``"box_off"``, the best is below
+    ``min_iou`` (a track is on them, but its box is not); ``"taken"``, it reaches ``min_iou`` but is
+    paired with someone else (one track on two overlapping people). Where (:data:`MISS_PLACES`): before
+    the person's first paired frame, between two, after the last, or ``"never"`` paired in the shot.
+
+    Args:
+        matched: ``(P, T)`` from :func:`match_people`; eligible ``(P, T)``.
+        true_boxes: ``(P, T, 4)``; pred_boxes ``(N, T, 4)``; pred_valid ``(N, T)``.
+    Returns:
+        counts keyed by ``(kind, place)``, every pair present.
+    """
+    counts = {(kind, place): 0 for kind in MISS_KINDS for place in MISS_PLACES}
+    for person, frame in zip(*np.nonzero(eligible & (matched < 0))):
+        preds = np.flatnonzero(pred_valid[:, frame])
+        iou = box_iou(true_boxes[person, frame][None], pred_boxes[preds, frame])[0] if preds.size else np.zeros(0)
+        best = int(np.argmax(iou)) if iou.size else -1
+        if best < 0 or iou[best] < near_iou:
+            kind = "none"
+        elif iou[best] < min_iou:
+            kind = "box_off"
+        else:
+            kind = "taken"
+        paired = np.flatnonzero(matched[person] >= 0)
+        if not paired.size:
+            place = "never"
+        else:
+            place = "before" if frame < paired[0] else "after" if frame > paired[-1] else "between"
+        counts[kind, place] += 1
+    return counts
+
+
 def pck(pred_uv: np.ndarray, true_uv: np.ndarray, joints: np.ndarray, box_size: np.ndarray,
         alpha: float = 0.1) -> tuple[int, int]:
     """Correct and counted keypoints: ``pred_uv, true_uv (..., J, 2)``, ``joints (..., J)`` bool (which
@@ -160,4 +203,4 @@ def pck(pred_uv: np.ndarray, true_uv: np.ndarray, joints: np.ndarray, box_size: 
 
 
 __all__ = ["match_people", "silhouette_area", "silhouette_boxes", "eligible_people", "DetectionCounts",
-           "detection_counts", "pck", "MIN_IOU"]
+           "detection_counts", "miss_kinds", "MISS_KINDS", "MISS_PLACES", "pck", "MIN_IOU"]

@@ -6,7 +6,8 @@ import pytest
 
 from multithumbs.metrics.identity import projected_boxes
 from multithumbs.metrics.perception import (
-    detection_counts, eligible_people, match_people, pck, silhouette_area, silhouette_boxes,
+    MISS_KINDS, MISS_PLACES, detection_counts, eligible_people, match_people, miss_kinds, pck, silhouette_area,
+    silhouette_boxes,
 )
 
 from tests.metrics.test_identity import _trackeval_similarities
@@ -114,6 +115,29 @@ def test_counts_by_hand():
     counts = detection_counts(matched, eligible, valid)
     assert (counts.true_positives, counts.eligible, counts.predictions, counts.false_positives) == (1, 2, 4, 2)
     assert counts.recall == 0.5 and counts.precision == 0.5
+
+
+def test_misses_by_hand():
+    # Two people over five frames, one prediction. Person 0 is paired at frames 1 and 3 only. At frame 0
+    # the prediction is on person 1 (who is paired there) and covers person 0 too: taken, before. At frame 2
+    # the prediction sits half off person 0 (IoU 1/3): box off, between. At frame 4 it is gone: none, after.
+    # Person 1 is paired at frame 0 and not eligible after it.
+    box = np.array([0, 0, 10, 10], float)
+    true_boxes = np.stack([np.tile(box, (5, 1)), np.tile(box + [1, 0, 1, 0], (5, 1))])
+    pred_boxes = np.tile(box, (1, 5, 1))
+    pred_boxes[0, 0] = box + [1, 0, 1, 0]
+    pred_boxes[0, 2] = box + [5, 0, 5, 0]
+    valid = np.array([[True, True, True, True, False]])
+    eligible = np.array([[True] * 5, [True, False, False, False, False]])
+    matched = match_people(pred_boxes, valid, true_boxes, np.ones((2, 5), bool))
+    assert matched.tolist() == [[-1, 0, -1, 0, -1], [0, -1, -1, -1, -1]]
+    counts = miss_kinds(matched, eligible, true_boxes, pred_boxes, valid)
+    assert {k: v for k, v in counts.items() if v} == {("taken", "before"): 1, ("box_off", "between"): 1,
+                                                      ("none", "after"): 1}
+    assert len(counts) == len(MISS_KINDS) * len(MISS_PLACES)
+    # Nobody paired in the shot: "never"; the total is the number of misses.
+    counts = miss_kinds(np.full((2, 5), -1), eligible, true_boxes, pred_boxes, np.zeros((1, 5), bool))
+    assert counts[("none", "never")] == int(eligible.sum()) == sum(counts.values())
 
 
 def test_pck_by_hand():
