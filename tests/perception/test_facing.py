@@ -242,7 +242,6 @@ def test_frames_whose_hips_are_unseen_are_labelled_across_the_shoulders():
     assert not facing_flips(world, velocity, hips_seen, judged).any()   # unlinked: the readings are kept
 
 
-
 def test_a_body_is_seen_with_both_hips_and_one_legs_knee_and_ankle_inside_the_image():
     image = np.ones((5, 33, 5))
     image[..., :2] = 10.0

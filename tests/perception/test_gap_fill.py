@@ -103,7 +103,6 @@ def test_a_track_that_ends_is_not_carried_on(body):
     assert bridge_gaps(tracks, body) is tracks
 
 
-
 def test_the_cpu_backend_bridges_a_walker_unseen_for_six_frames(body):
     from multithumbs.perception.blazepose_backend import poses_to_tracks
 
